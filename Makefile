@@ -1,0 +1,27 @@
+# Two set-up commands for a fresh machine: `make demo` (main job) and `make test` (tests).
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+
+.PHONY: demo test test-slow bench clean
+
+$(BIN)/robot-rise: pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+demo: $(BIN)/robot-rise
+	$(BIN)/robot-rise demo --out out/demo
+
+test: $(BIN)/robot-rise
+	$(BIN)/python -m pytest -q
+
+test-slow: $(BIN)/robot-rise
+	$(BIN)/python -m pytest -q -m slow
+
+bench: $(BIN)/robot-rise
+	$(BIN)/robot-rise bench validity
+
+clean:
+	rm -rf $(VENV) out

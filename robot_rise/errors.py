@@ -1,0 +1,44 @@
+"""The one root exception of robot_rise and its per-area subclasses.
+
+Library code raises these (wrapping third-party errors with ``raise ... from e``) so the CLI can
+print one clear line plus a hint. An expected planning or filtering failure is a status in a
+result object, not an exception.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "RobotRiseError",
+    "ConfigError",
+    "FormatError",
+    "PostureError",
+    "SceneError",
+]
+
+
+class RobotRiseError(Exception):
+    """Root of every error robot_rise raises on purpose.
+
+    Attributes:
+        hint: one line telling the user what to do about it (may be empty).
+    """
+
+    def __init__(self, message: str, *, hint: str = "") -> None:
+        super().__init__(message)
+        self.hint = hint
+
+
+class ConfigError(RobotRiseError):
+    """A robot directory, servo map or scene is missing or malformed."""
+
+
+class FormatError(RobotRiseError):
+    """A file does not follow its declared ``format`` (wrong version, missing field, bad value)."""
+
+
+class PostureError(FormatError):
+    """A posture is malformed or does not fit the robot (unknown joint, limit, quaternion)."""
+
+
+class SceneError(ConfigError):
+    """A scene file cannot be composed with the robot."""

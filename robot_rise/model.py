@@ -1,0 +1,398 @@
+"""The robot: loads a robot directory and composes it with a scene into a MuJoCo model.
+
+A robot directory holds ``robot.toml`` (format ``robot-rise/robot@1``: metric groups, limbs,
+sites), ``robot.xml`` (MJCF: bodies, joints with ranges, collision geoms, a ``stand`` keyframe,
+a free joint at the root) and ``servos.toml`` (format ``robot-rise/servos@1``: servo per joint).
+This is the only module that knows MJCF layout details. Nothing here names a joint of a
+particular robot.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import tomllib
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from robot_rise.constants import METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
+from robot_rise.errors import ConfigError, SceneError
+from robot_rise.paths import default_robot_dir, scene_path
+from robot_rise.servo import ServoSpec, servo_spec
+
+__all__ = [
+    "Robot",
+    "ServoAssignment",
+    "ModelIndex",
+    "load_robot",
+    "compose",
+    "model_index",
+    "GROUND_PREFIX",
+    "SIM_TIMESTEP_S",
+    "SUPPLY_VOLTAGE_V",
+]
+
+log = logging.getLogger(__name__)
+
+ROBOT_FORMAT = "robot-rise/robot@1"
+SERVOS_FORMAT = "robot-rise/servos@1"
+GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are obstacles
+SIM_TIMESTEP_S = 0.002  # physics step: 500 Hz (issue 4 asks for >= 500 Hz)
+SUPPLY_VOLTAGE_V = 12.0  # servo supply the actuators are modelled at
+_ATTACH_PREFIX = "robot_rise:"
+
+
+@dataclass(frozen=True)
+class ServoAssignment:
+    """One row of ``servos.toml``: which servo drives which joint. Angles in radians."""
+
+    id: int
+    joint: str
+    model: str
+    direction: int
+    zero_offset: float
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A loaded robot directory (no MuJoCo state; compose() builds models).
+
+    Attributes:
+        name: robot name (e.g. "op3"), written into posture and trajectory files.
+        directory: the robot directory.
+        joint_names: actuated joints in model order, shape (n,).
+        joint_lower, joint_upper: joint ranges from the MJCF [rad], shape (n,).
+        servos: servo assignment per joint, in joint order.
+        metric_weights: per-joint weights w^i of paper 000 eq. (3), shape (n,).
+        limbs: limb name -> joint names (paper 004's five linkages; partial-body planning).
+        sole_sites, torso_site: site names for the standing judge.
+        stand_qpos: qpos of the ``stand`` keyframe (robot alone), shape (7 + n,).
+        xml_text: the robot MJCF (hashing and composition).
+    """
+
+    name: str
+    directory: Path
+    joint_names: tuple[str, ...]
+    joint_lower: np.ndarray
+    joint_upper: np.ndarray
+    servos: tuple[ServoAssignment, ...]
+    metric_weights: np.ndarray
+    limbs: dict[str, tuple[str, ...]]
+    sole_sites: tuple[str, ...]
+    torso_site: str
+    stand_qpos: np.ndarray
+    xml_path: Path
+    root_body: str
+    keyframes: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def root_orientation_weight(self) -> float:
+        """w_q of paper 000 eq. (1)."""
+        return ROOT_ORIENTATION_WEIGHT
+
+    def joint_index(self, name: str) -> int:
+        """Index of a joint in joint_names; ConfigError naming the valid joints otherwise."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise ConfigError(f"robot {self.name} has no joint {name!r}; joints: {', '.join(self.joint_names)}") from None
+
+    def servo_specs(self) -> tuple[ServoSpec, ...]:
+        """Servo spec per joint, in joint order."""
+        return tuple(servo_spec(s.model) for s in self.servos)
+
+    @cached_property
+    def stand_height_m(self) -> float:
+        """Height of the torso site above the soles in the ``stand`` keyframe [m]."""
+        m = compose(self, None)
+        d = mujoco.MjData(m)
+        idx = model_index(m, self)
+        d.qpos[:] = m.qpos0
+        d.qpos[idx.qpos_root] = self.stand_qpos[:7]
+        d.qpos[idx.qpos_joints] = self.stand_qpos[7:]
+        mujoco.mj_kinematics(m, d)
+        sole_z = min(d.site(s).xpos[2] for s in self.sole_sites)
+        return float(d.site(self.torso_site).xpos[2] - sole_z)
+
+    def digest(self) -> str:
+        """SHA-256 over the robot's files (identifies the model a result was proven on)."""
+        h = hashlib.sha256()
+        for name in ("robot.toml", "robot.xml", "servos.toml"):
+            h.update((self.directory / name).read_bytes())
+        return h.hexdigest()
+
+
+def _read_toml(path: Path, fmt: str) -> dict:
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"missing file {path}", hint="a robot directory needs robot.toml, robot.xml and servos.toml") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML: {e}") from e
+    if data.get("format") != fmt:
+        raise ConfigError(f"{path}: format is {data.get('format')!r}, expected {fmt!r}")
+    return data
+
+
+def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
+    """Load a robot directory (default: the embedded OP3-class robot).
+
+    Raises:
+        ConfigError: a file is missing or malformed, or the files disagree with each other.
+    """
+    root = Path(directory) if directory is not None else default_robot_dir()
+    if not root.is_dir():
+        raise ConfigError(f"robot directory {root} does not exist", hint="pass --robot DIR with robot.toml, robot.xml, servos.toml")
+    meta = _read_toml(root / "robot.toml", ROBOT_FORMAT)
+    xml_path = root / meta.get("model", "robot.xml")
+    try:
+        spec = mujoco.MjSpec.from_file(str(xml_path))
+        m = spec.compile()
+    except Exception as e:  # mujoco raises ValueError with the parser message
+        raise ConfigError(f"{xml_path}: cannot load MJCF: {e}") from e
+
+    free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    if len(free) != 1:
+        raise ConfigError(f"{xml_path}: needs exactly one free joint at the root, found {len(free)}")
+    root_body = m.body(m.jnt_bodyid[free[0]]).name
+    hinge = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    if len(hinge) != m.njnt - 1:
+        raise ConfigError(f"{xml_path}: only hinge joints (plus the root free joint) are supported")
+    joint_names = tuple(m.joint(j).name for j in hinge)
+    if not all(m.jnt_limited[j] for j in hinge):
+        bad = [m.joint(j).name for j in hinge if not m.jnt_limited[j]]
+        raise ConfigError(f"{xml_path}: joints without range: {', '.join(bad)}")
+    lower = np.array([m.jnt_range[j, 0] for j in hinge])
+    upper = np.array([m.jnt_range[j, 1] for j in hinge])
+
+    keyframes = {m.key(k).name: m.key_qpos[k].copy() for k in range(m.nkey)}
+    if "stand" not in keyframes:
+        raise ConfigError(f"{xml_path}: a keyframe named 'stand' is required")
+
+    groups = meta.get("metric_groups", {})
+    weights = np.full(len(joint_names), METRIC_GROUP_WEIGHTS["default"])
+    for group, joints in groups.items():
+        if group not in METRIC_GROUP_WEIGHTS:
+            raise ConfigError(f"{root / 'robot.toml'}: unknown metric group {group!r}; known: {', '.join(METRIC_GROUP_WEIGHTS)}")
+        for j in joints:
+            if j not in joint_names:
+                raise ConfigError(f"{root / 'robot.toml'}: metric group {group} names unknown joint {j!r}")
+            weights[joint_names.index(j)] = METRIC_GROUP_WEIGHTS[group]
+
+    limbs = {k: tuple(v) for k, v in meta.get("limbs", {}).items()}
+    in_limbs = [j for v in limbs.values() for j in v]
+    if limbs and sorted(in_limbs) != sorted(joint_names):
+        raise ConfigError(f"{root / 'robot.toml'}: [limbs] must list every joint exactly once")
+
+    sites = meta.get("sites", {})
+    sole_sites = tuple(sites.get("soles", ()))
+    torso_site = sites.get("torso", "")
+    for s in (*sole_sites, torso_site):
+        if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) < 0:
+            raise ConfigError(f"{root / 'robot.toml'}: site {s!r} is not in {xml_path.name}")
+
+    servos = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name))
+
+    # Key qpos in the robot-alone model: root (7) then hinges in order (jnt_qposadr increasing).
+    stand = keyframes["stand"]
+    key_joint = np.array([stand[m.jnt_qposadr[j]] for j in hinge])
+    qpos_stand = np.concatenate([stand[m.jnt_qposadr[free[0]] : m.jnt_qposadr[free[0]] + 7], key_joint])
+    return Robot(
+        name=meta.get("name", root.name),
+        directory=root,
+        joint_names=joint_names,
+        joint_lower=lower,
+        joint_upper=upper,
+        servos=servos,
+        metric_weights=weights,
+        limbs=limbs,
+        sole_sites=sole_sites,
+        torso_site=torso_site,
+        stand_qpos=qpos_stand,
+        xml_path=xml_path,
+        root_body=root_body,
+        keyframes=keyframes,
+    )
+
+
+def _load_servos(path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str) -> tuple[ServoAssignment, ...]:
+    data = _read_toml(path, SERVOS_FORMAT)
+    rows = data.get("servo", [])
+    by_joint: dict[str, ServoAssignment] = {}
+    ids: set[int] = set()
+    for row in rows:
+        try:
+            s = ServoAssignment(
+                id=int(row["id"]),
+                joint=str(row["joint"]),
+                model=str(row["model"]),
+                direction=int(row.get("direction", 1)),
+                zero_offset=float(row.get("zero_offset", 0.0)),
+                lower=float(row["min"]),
+                upper=float(row["max"]),
+            )
+        except (KeyError, TypeError, ValueError) as e:
+            raise ConfigError(f"{path}: servo row {row!r} is malformed ({e})") from e
+        if s.joint not in joint_names:
+            raise ConfigError(f"{path}: servo {s.id} drives unknown joint {s.joint!r}; joints: {', '.join(joint_names)}")
+        if s.joint in by_joint or s.id in ids:
+            raise ConfigError(f"{path}: servo id {s.id} or joint {s.joint} appears twice")
+        if s.direction not in (-1, 1):
+            raise ConfigError(f"{path}: servo {s.id}: direction must be 1 or -1")
+        i = joint_names.index(s.joint)
+        if s.lower < lower[i] - 1e-6 or s.upper > upper[i] + 1e-6 or s.lower >= s.upper:
+            raise ConfigError(
+                f"{path}: servo {s.id} ({s.joint}) limits [{s.lower}, {s.upper}] must lie inside the model range [{lower[i]}, {upper[i]}]"
+            )
+        servo_spec(s.model)  # raises on an unknown model
+        by_joint[s.joint] = s
+        ids.add(s.id)
+    missing = [j for j in joint_names if j not in by_joint]
+    if missing:
+        raise ConfigError(f"{path}: no servo for joints {', '.join(missing)}")
+    return tuple(by_joint[j] for j in joint_names)
+
+
+@dataclass(frozen=True)
+class ModelIndex:
+    """Where the robot lives in a composed model's arrays (read-only index arrays).
+
+    Attributes:
+        qpos_root: 7 indices (position xyz, quaternion wxyz) of the root free joint.
+        qvel_root: 6 indices of the root free joint in qvel.
+        qpos_joints, dof_joints: per-joint indices in qpos / qvel, shape (n,).
+        actuators: per-joint actuator indices, shape (n,) (empty if composed without actuators).
+        robot_geoms, ground_geoms, obstacle_geoms: geom id arrays.
+        root_body: body id of the root.
+    """
+
+    qpos_root: np.ndarray
+    qvel_root: np.ndarray
+    qpos_joints: np.ndarray
+    dof_joints: np.ndarray
+    actuators: np.ndarray
+    robot_geoms: np.ndarray
+    ground_geoms: np.ndarray
+    obstacle_geoms: np.ndarray
+    root_body: int
+
+
+def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
+    """Index the robot's joints, actuators and geoms in a composed model."""
+    root_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
+    free = int(m.body_jntadr[root_body])
+    jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in robot.joint_names]
+    acts = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in robot.joint_names]
+    world = m.geom_bodyid == 0
+    names = [m.geom(g).name for g in range(m.ngeom)]
+    ground = np.array([g for g in range(m.ngeom) if world[g] and names[g].startswith(GROUND_PREFIX)], dtype=int)
+    obstacles = np.array([g for g in range(m.ngeom) if world[g] and not names[g].startswith(GROUND_PREFIX)], dtype=int)
+    robot_geoms = np.array([g for g in range(m.ngeom) if not world[g]], dtype=int)
+
+    def ro(a: list[int] | np.ndarray) -> np.ndarray:
+        arr = np.asarray(a, dtype=int)
+        arr.setflags(write=False)
+        return arr
+
+    qa, da = int(m.jnt_qposadr[free]), int(m.jnt_dofadr[free])
+    return ModelIndex(
+        qpos_root=ro(np.arange(qa, qa + 7)),
+        qvel_root=ro(np.arange(da, da + 6)),
+        qpos_joints=ro([m.jnt_qposadr[j] for j in jids]),
+        dof_joints=ro([m.jnt_dofadr[j] for j in jids]),
+        actuators=ro([a for a in acts if a >= 0]),
+        robot_geoms=ro(robot_geoms),
+        ground_geoms=ro(ground),
+        obstacle_geoms=ro(obstacles),
+        root_body=root_body,
+    )
+
+
+def compose(
+    robot: Robot,
+    scene: str | os.PathLike[str] | None = "flat",
+    *,
+    with_actuators: bool = True,
+    voltage_v: float = SUPPLY_VOLTAGE_V,
+    friction_scale: float = 1.0,
+    mass_scale: float = 1.0,
+) -> mujoco.MjModel:
+    """Compose robot + scene (+ servo actuators) into one MuJoCo model.
+
+    Args:
+        robot: the loaded robot.
+        scene: scene MJCF path or shipped scene name; None for the robot alone (no ground).
+        with_actuators: add one Dynamixel position servo per joint (see robot_rise/servo.py):
+            a position actuator with kp_eff and force range +-stall torque, plus back-EMF and gear
+            damping, armature and friction loss on the joint.
+        voltage_v: servo supply voltage [V].
+        friction_scale: multiplies every geom's sliding friction (robustness tests).
+        mass_scale: multiplies every robot body's mass and inertia (robustness tests).
+
+    Raises:
+        SceneError: the scene cannot be read or composed.
+    """
+    rspec = mujoco.MjSpec.from_file(str(robot.xml_path))
+    for k in list(rspec.keys):
+        rspec.delete(k)
+    if scene is None:
+        spec = rspec
+    else:
+        path = scene_path(scene)
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+        except Exception as e:
+            raise SceneError(f"cannot read scene {path}: {e}", hint="shipped scenes: flat, beam, low_bed, table, slope, icy, soft") from e
+        # Attach under a temporary prefix, then strip it: names stay the robot's own and MuJoCo
+        # does not warn about an empty prefix.
+        frame = spec.worldbody.add_frame()
+        frame.attach_body(rspec.body(robot.root_body), _ATTACH_PREFIX, "")
+        for elements in (spec.bodies, spec.joints, spec.geoms, spec.sites, spec.cameras):
+            for el in elements:
+                if el.name.startswith(_ATTACH_PREFIX):
+                    el.name = el.name[len(_ATTACH_PREFIX) :]
+    if with_actuators:
+        for s, servo in zip(robot.servos, robot.servo_specs()):
+            j = spec.joint(s.joint)
+            j.damping[0] = servo.back_emf_damping_nm_s + servo.viscous_damping_nm_s
+            j.armature = servo.armature_kg_m2
+            j.frictionloss = servo.friction_loss_nm
+            kp = servo.position_gain_nm_per_rad(voltage_v)
+            act = spec.add_actuator()
+            act.name = s.joint
+            act.target = s.joint
+            act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+            act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            act.gainprm[0] = kp
+            act.biasprm[0:3] = [0.0, -kp, 0.0]
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [s.lower, s.upper]
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            stall = servo.stall_torque_at(voltage_v)
+            act.forcerange = [-stall, stall]
+    spec.option.timestep = SIM_TIMESTEP_S
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    try:
+        m = spec.compile()
+    except Exception as e:
+        raise SceneError(f"cannot compose robot {robot.name} with scene {scene}: {e}") from e
+    if friction_scale != 1.0:
+        m.geom_friction[:, 0] *= friction_scale
+    if mass_scale != 1.0:
+        bodies = np.arange(1, m.nbody)  # every body but the world (scenes have static geoms only)
+        m.body_mass[bodies] *= mass_scale
+        m.body_inertia[bodies] *= mass_scale
+    return m

@@ -1,0 +1,287 @@
+"""Validity of postures for planning: joint limits, ground, self and obstacle collision.
+
+One question, one owner (OMPL's StateValidityChecker): the checker answers "is this posture
+legal?" and "how far from the nearest contact is it?", nothing about paths. Collision geometry
+is the robot's capsules/boxes (paper 000 section 4.2.2, sphere-swept volumes) and the scene's
+world geoms; MuJoCo's collision pipeline computes signed distances.
+
+Touching is legal: a contact counts as a collision only when the surfaces interpenetrate by
+more than ``contact_tolerance_m`` (a lying robot touches the ground everywhere it rests).
+
+Looseness (paper 000 section 4.2.3): the ground can be lowered and obstacles shrunk so that a
+planner can start from a relaxed problem and tighten it to the real one.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from robot_rise.model import ModelIndex, Robot, compose, model_index
+from robot_rise.posture import Posture
+
+__all__ = ["Looseness", "STRICT", "Collision", "ValidityReport", "ValidityChecker", "CollisionKind"]
+
+DEFAULT_CONTACT_TOLERANCE_M = 0.002  # interpenetration allowed as "touching" (MuJoCo soft contact)
+DEFAULT_CLEARANCE_MARGIN_M = 0.05  # distances are measured up to this; beyond, clearance reads as this
+MIN_OBSTACLE_SIZE_M = 1e-4  # an obstacle shrunk "to zero" keeps this size (MuJoCo needs > 0)
+
+CollisionKind = str  # "ground" | "self" | "obstacle"
+
+
+@dataclass(frozen=True)
+class Looseness:
+    """How much the environment is relaxed (paper 000 section 4.2.3).
+
+    Attributes:
+        ground_drop_m: ground geoms moved down by this much [m].
+        obstacle_shrink_m: every obstacle geom size (radius / half-extent) reduced by this much [m],
+            down to a minimum of 0.1 mm ("shrunk to zero").
+    """
+
+    ground_drop_m: float = 0.0
+    obstacle_shrink_m: float = 0.0
+
+    @property
+    def is_strict(self) -> bool:
+        return self.ground_drop_m == 0.0 and self.obstacle_shrink_m == 0.0
+
+
+STRICT = Looseness()
+
+
+@dataclass(frozen=True)
+class Collision:
+    """One interpenetrating pair. ``distance_m`` is negative (penetration depth)."""
+
+    kind: CollisionKind
+    geom1: str
+    geom2: str
+    distance_m: float
+
+
+@dataclass(frozen=True)
+class ValidityReport:
+    """Full validity report of one posture.
+
+    Clearances are signed minimum distances per pair class [m]: negative is penetration; values
+    saturate at the checker's clearance margin (nothing nearer than that).
+    """
+
+    valid: bool
+    limit_violations: tuple[str, ...]
+    ground_clearance_m: float
+    self_clearance_m: float
+    obstacle_clearance_m: float
+    collisions: tuple[Collision, ...] = field(default_factory=tuple)
+
+    @property
+    def ground_penetration(self) -> bool:
+        return any(c.kind == "ground" for c in self.collisions)
+
+    @property
+    def self_collision(self) -> bool:
+        return any(c.kind == "self" for c in self.collisions)
+
+    @property
+    def obstacle_collision(self) -> bool:
+        return any(c.kind == "obstacle" for c in self.collisions)
+
+    def reasons(self) -> list[str]:
+        """One line per problem, empty when valid."""
+        out = [f"joint limit: {v}" for v in self.limit_violations]
+        out += [f"{c.kind} collision: {c.geom1} / {c.geom2} penetrate {-c.distance_m * 1000:.1f} mm" for c in self.collisions]
+        return out
+
+
+class ValidityChecker:
+    """Checks postures of one robot in one scene at one looseness.
+
+    Not thread-safe (owns one MjData); make one per thread.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        scene: str | os.PathLike[str] | None = "flat",
+        *,
+        looseness: Looseness = STRICT,
+        contact_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M,
+        clearance_margin_m: float = DEFAULT_CLEARANCE_MARGIN_M,
+        joint_limit_tolerance_rad: float = 1e-6,
+        _base: mujoco.MjModel | None = None,
+    ) -> None:
+        self.robot = robot
+        self.scene = scene
+        self.looseness = looseness
+        self.contact_tolerance_m = float(contact_tolerance_m)
+        self.clearance_margin_m = float(clearance_margin_m)
+        self.joint_limit_tolerance_rad = float(joint_limit_tolerance_rad)
+        base = _base if _base is not None else compose(robot, scene, with_actuators=False)
+        self._base = base
+        self.model = _loosened_copy(base, robot, looseness)
+        self.index: ModelIndex = model_index(self.model, robot)
+        self._data = mujoco.MjData(self.model)
+        self._probe_model = _loosened_copy(base, robot, looseness)
+        self._probe_model.geom_margin[:] = self.clearance_margin_m
+        self._probe_data = mujoco.MjData(self._probe_model)
+        self._lower = robot.joint_lower - self.joint_limit_tolerance_rad
+        self._upper = robot.joint_upper + self.joint_limit_tolerance_rad
+        self._qj = self.index.qpos_joints
+        kinds = np.zeros(self.model.ngeom, dtype=np.int8)  # 0 robot, 1 ground, 2 obstacle
+        kinds[self.index.ground_geoms] = 1
+        kinds[self.index.obstacle_geoms] = 2
+        self._geom_kind = kinds
+        self._geom_names = [self.model.geom(g).name or f"geom{g}" for g in range(self.model.ngeom)]
+
+    # --- construction helpers -----------------------------------------------------------------
+
+    def loosened(self, looseness: Looseness) -> ValidityChecker:
+        """A checker for the same robot and scene at another looseness (shares the base model)."""
+        return ValidityChecker(
+            self.robot,
+            self.scene,
+            looseness=looseness,
+            contact_tolerance_m=self.contact_tolerance_m,
+            clearance_margin_m=self.clearance_margin_m,
+            joint_limit_tolerance_rad=self.joint_limit_tolerance_rad,
+            _base=self._base,
+        )
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    def qpos_of(self, posture: Posture) -> np.ndarray:
+        """Posture -> qpos of this checker's model, shape (nq,)."""
+        return posture.qpos(self.robot, self.index, self.model.qpos0)
+
+    # --- checks -------------------------------------------------------------------------------
+
+    def is_valid_qpos(self, qpos: np.ndarray) -> bool:
+        """Fast predicate: limits kept and nothing interpenetrates beyond the tolerance."""
+        qj = qpos[self._qj]
+        if np.any(qj < self._lower) or np.any(qj > self._upper):
+            return False
+        m, d = self.model, self._data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        n = d.ncon
+        if n == 0:
+            return True
+        return bool(d.contact.dist[:n].min() >= -self.contact_tolerance_m)
+
+    def is_valid(self, posture: Posture) -> bool:
+        """Fast predicate for a Posture."""
+        return self.is_valid_qpos(self.qpos_of(posture))
+
+    def valid_batch(self, qpos: np.ndarray) -> np.ndarray:
+        """Predicate over a batch, qpos shape (N, nq) -> bool array shape (N,)."""
+        qpos = np.atleast_2d(qpos)
+        return np.fromiter((self.is_valid_qpos(q) for q in qpos), dtype=bool, count=len(qpos))
+
+    def first_invalid(self, qpos: np.ndarray) -> int:
+        """Index of the first invalid row of a (N, nq) batch, or -1 if all are valid."""
+        for i, q in enumerate(np.atleast_2d(qpos)):
+            if not self.is_valid_qpos(q):
+                return i
+        return -1
+
+    def check_qpos(self, qpos: np.ndarray) -> ValidityReport:
+        """Full report for one qpos: limit violations, collisions, clearance per pair class."""
+        qpos = np.asarray(qpos, dtype=float)
+        qj = qpos[self._qj]
+        viol = []
+        for i in np.flatnonzero((qj < self._lower) | (qj > self._upper)):
+            viol.append(
+                f"{self.robot.joint_names[i]}={qj[i]:.4f} not in [{self.robot.joint_lower[i]:.4f}, {self.robot.joint_upper[i]:.4f}]"
+            )
+        m, d = self._probe_model, self._probe_data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        clear = {"ground": self.clearance_margin_m, "self": self.clearance_margin_m, "obstacle": self.clearance_margin_m}
+        deepest: dict[tuple[int, int], Collision] = {}  # one entry per geom pair, its deepest contact
+        kind_of = self._geom_kind
+        for k in range(d.ncon):
+            c = d.contact[k]
+            g1, g2 = int(c.geom[0]), int(c.geom[1])
+            k1, k2 = kind_of[g1], kind_of[g2]
+            kind = "self" if k1 == 0 and k2 == 0 else "ground" if 1 in (k1, k2) else "obstacle"
+            dist = float(c.dist)
+            clear[kind] = min(clear[kind], dist)
+            if dist < -self.contact_tolerance_m and (
+                (g1, g2) not in deepest or dist < deepest[(g1, g2)].distance_m
+            ):
+                deepest[(g1, g2)] = Collision(kind, self._geom_names[g1], self._geom_names[g2], dist)
+        collisions = sorted(deepest.values(), key=lambda c: c.distance_m)
+        return ValidityReport(
+            valid=not viol and not collisions,
+            limit_violations=tuple(viol),
+            ground_clearance_m=clear["ground"],
+            self_clearance_m=clear["self"],
+            obstacle_clearance_m=clear["obstacle"],
+            collisions=tuple(collisions),
+        )
+
+    def check(self, posture: Posture) -> ValidityReport:
+        """Full report for a Posture."""
+        return self.check_qpos(self.qpos_of(posture))
+
+    def lowest_point_z(self, qpos: np.ndarray) -> float:
+        """Lowest z of the robot's collision geometry in this posture [m] (via a far-below plane)."""
+        return float(_lowest_geom_z(self.model, self._data, self.index, qpos))
+
+
+def _loosened_copy(base: mujoco.MjModel, robot: Robot, looseness: Looseness) -> mujoco.MjModel:
+    m = _copy_model(base)
+    if looseness.is_strict:
+        return m
+    idx = model_index(m, robot)
+    for g in idx.ground_geoms:
+        m.geom_pos[g, 2] -= looseness.ground_drop_m
+    for g in idx.obstacle_geoms:
+        size = m.geom_size[g]
+        t = m.geom_type[g]
+        if t == mujoco.mjtGeom.mjGEOM_BOX:
+            size[:3] = np.maximum(size[:3] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
+        elif t in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_CYLINDER):
+            # radius shrinks (the SSV radius of the paper); a cylinder's half-length shrinks too
+            size[0] = max(size[0] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
+            if t == mujoco.mjtGeom.mjGEOM_CYLINDER:
+                size[1] = max(size[1] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
+        elif t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
+            size[:3] = np.maximum(size[:3] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
+    return m
+
+
+def _copy_model(m: mujoco.MjModel) -> mujoco.MjModel:
+    import copy
+
+    return copy.copy(m)
+
+
+def _lowest_geom_z(m: mujoco.MjModel, d: mujoco.MjData, idx: ModelIndex, qpos: np.ndarray) -> float:
+    """Lowest z over the robot's geoms: exact for spheres, capsules and boxes."""
+    d.qpos[:] = qpos
+    mujoco.mj_kinematics(m, d)
+    low = np.inf
+    for g in idx.robot_geoms:
+        t = m.geom_type[g]
+        pos = d.geom_xpos[g]
+        mat = d.geom_xmat[g].reshape(3, 3)
+        size = m.geom_size[g]
+        if t == mujoco.mjtGeom.mjGEOM_SPHERE:
+            z = pos[2] - size[0]
+        elif t == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            z = pos[2] - abs(mat[2, 2]) * size[1] - size[0]
+        elif t == mujoco.mjtGeom.mjGEOM_BOX:
+            z = pos[2] - float(np.abs(mat[2, :]) @ size[:3])
+        else:  # conservative bounding sphere for other types
+            z = pos[2] - m.geom_rbound[g]
+        low = min(low, z)
+    return float(low)
