@@ -131,6 +131,11 @@ class ValidityChecker:
         self._lower = robot.joint_lower - self.joint_limit_tolerance_rad
         self._upper = robot.joint_upper + self.joint_limit_tolerance_rad
         self._qj = self.index.qpos_joints
+        qj = self._qj
+        contiguous = len(qj) > 0 and np.array_equal(qj, np.arange(qj[0], qj[0] + len(qj)))
+        self._qj_slice: slice | np.ndarray = slice(int(qj[0]), int(qj[0]) + len(qj)) if contiguous else qj
+        self._mid = (self._lower + self._upper) / 2
+        self._half = (self._upper - self._lower) / 2
         kinds = np.zeros(self.model.ngeom, dtype=np.int8)  # 0 robot, 1 ground, 2 obstacle
         kinds[self.index.ground_geoms] = 1
         kinds[self.index.obstacle_geoms] = 2
@@ -163,8 +168,8 @@ class ValidityChecker:
 
     def is_valid_qpos(self, qpos: np.ndarray) -> bool:
         """Fast predicate: limits kept and nothing interpenetrates beyond the tolerance."""
-        qj = qpos[self._qj]
-        if np.any(qj < self._lower) or np.any(qj > self._upper):
+        # One fused comparison on a slice view: numpy call overhead dominates at this size.
+        if (np.abs(qpos[self._qj_slice] - self._mid) > self._half).any():
             return False
         m, d = self.model, self._data
         d.qpos[:] = qpos
@@ -256,6 +261,9 @@ def _loosened_copy(base: mujoco.MjModel, robot: Robot, looseness: Looseness) -> 
                 size[1] = max(size[1] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
         elif t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
             size[:3] = np.maximum(size[:3] - looseness.obstacle_shrink_m, MIN_OBSTACLE_SIZE_M)
+    # Poses of world geoms are compile-time constants that kinematics copies, not recomputes:
+    # refresh them (and bounding volumes) after moving the ground.
+    mujoco.mj_setConst(m, mujoco.MjData(m))
     return m
 
 

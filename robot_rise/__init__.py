@@ -1,0 +1,1 @@
+"""robot_rise: plan, filter and execute get-up motions for Dynamixel humanoids."""

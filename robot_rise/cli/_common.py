@@ -1,0 +1,62 @@
+"""Shared CLI helpers: robot/scene options, progress on a terminal, JSON output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+from robot_rise.model import Robot, load_robot
+
+__all__ = ["add_robot_args", "load_robot_arg", "Progress", "print_json", "Formatter"]
+
+
+class Formatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the examples in epilogs as written."""
+
+
+def add_robot_args(p: argparse.ArgumentParser, *, scene: bool = True) -> None:
+    p.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3-class robot)")
+    if scene:
+        p.add_argument(
+            "--scene",
+            metavar="SCENE",
+            default="flat",
+            help="scene MJCF file or shipped scene name: flat, beam, low_bed, table, slope, icy, soft (default: flat)",
+        )
+
+
+def load_robot_arg(args: argparse.Namespace) -> Robot:
+    return load_robot(getattr(args, "robot", None))
+
+
+class Progress:
+    """A one-line progress bar on stderr when it is a terminal; silent in pipes and CI."""
+
+    def __init__(self, label: str, total: int, *, enabled: bool | None = None) -> None:
+        self.label = label
+        self.total = max(total, 1)
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.t0 = time.monotonic()
+
+    def __call__(self, done: int, total: int | None = None) -> None:
+        if not self.enabled:
+            return
+        total = total or self.total
+        width = 30
+        fill = int(width * done / max(total, 1))
+        el = time.monotonic() - self.t0
+        sys.stderr.write(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {done}/{total} {el:5.1f}s")
+        sys.stderr.flush()
+        if done >= total:
+            sys.stderr.write("\n")
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def print_json(obj: Any) -> None:
+    print(json.dumps(obj, indent=1, default=float))

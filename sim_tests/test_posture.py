@@ -1,0 +1,115 @@
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from robot_rise.errors import PostureError
+from robot_rise.posture import (
+    Posture,
+    PostureDistance,
+    posture_from_dict,
+    posture_to_dict,
+    quat_multiply,
+    read_posture,
+    write_posture,
+)
+
+
+def _stand(robot) -> Posture:
+    return Posture(robot.name, robot.stand_qpos[:3], robot.stand_qpos[3:7], dict(zip(robot.joint_names, robot.stand_qpos[7:])))
+
+
+def _yaw(angle: float) -> np.ndarray:
+    return np.array([math.cos(angle / 2), 0, 0, math.sin(angle / 2)])
+
+
+def test_posture_round_trips_through_its_json_file(tmp_path, robot):
+    p = _stand(robot)
+    write_posture(tmp_path / "p.json", p)
+    q = read_posture(tmp_path / "p.json", robot)
+    assert np.allclose(q.root_pos, p.root_pos) and np.allclose(q.root_quat_wxyz, p.root_quat_wxyz)
+    assert q.joints == pytest.approx(p.joints)
+    assert json.loads((tmp_path / "p.json").read_text())["format"] == "robot-rise/posture@1"
+
+
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda o: o.update(format="robot-rise/posture@2"), "format"),
+        (lambda o: o["joints"].update(tail=0.1), "unknown joints tail"),
+        (lambda o: o["joints"].pop("l_knee"), "missing joints l_knee"),
+        (lambda o: o.update(root_quat=[1, 1, 0, 0]), "not a unit quaternion"),
+        (lambda o: o.update(root_quat=[1, 0, 0]), "root_quat"),
+        (lambda o: o["joints"].update(l_knee=float("nan")), "NaN"),
+        (lambda o: o.update(root_pos=[0, 0, float("inf")]), "NaN or infinity"),
+        (lambda o: o["joints"].update(l_knee=3.0), "l_knee=3.0000 not in"),
+        (lambda o: o.update(robot="nao"), "robot 'nao'"),
+    ],
+)
+def test_reading_a_bad_posture_names_the_problem(robot, mutate, message):
+    obj = posture_to_dict(_stand(robot))
+    mutate(obj)
+    with pytest.raises(PostureError, match=message):
+        posture_from_dict(obj, robot)
+
+
+def test_limit_tolerance_option_accepts_small_overshoot(robot):
+    obj = posture_to_dict(_stand(robot))
+    obj["joints"]["l_knee"] = robot.joint_upper[robot.joint_index("l_knee")] + 0.005
+    with pytest.raises(PostureError):
+        posture_from_dict(obj, robot)
+    assert posture_from_dict(obj, robot, limit_tolerance_rad=0.01).joints["l_knee"] > robot.joint_upper[robot.joint_index("l_knee")]
+
+
+def test_invalid_json_is_reported_with_the_file_name(tmp_path, robot):
+    f = tmp_path / "broken.json"
+    f.write_text("{not json")
+    with pytest.raises(PostureError, match="broken.json: not valid JSON"):
+        read_posture(f, robot)
+
+
+def test_distance_is_zero_for_identical_postures_and_symmetric(robot):
+    metric = PostureDistance.for_robot(robot)
+    rng = np.random.default_rng(0)
+    q1, q2 = rng.normal(size=(2, 4))
+    q1, q2 = q1 / np.linalg.norm(q1), q2 / np.linalg.norm(q2)
+    v1, v2 = rng.uniform(robot.joint_lower, robot.joint_upper, size=(2, robot.n_joints))
+    assert metric(q1, v1, q1, v1) == pytest.approx(0.0, abs=1e-6)
+    assert metric(q1, v1, q2, v2) == pytest.approx(metric(q2, v2, q1, v1))
+    assert metric(q1, v1, q2, v2) > 0
+
+
+def test_distance_ignores_facing_direction_and_sign_of_quaternion(robot):
+    metric = PostureDistance.for_robot(robot)
+    rng = np.random.default_rng(1)
+    tilt = rng.normal(size=4)
+    tilt /= np.linalg.norm(tilt)
+    v = rng.uniform(robot.joint_lower, robot.joint_upper)
+    for yaw in (0.3, 1.7, -2.9):
+        assert metric(tilt, v, quat_multiply(_yaw(yaw), tilt), v) == pytest.approx(0.0, abs=1e-3)
+    assert metric(tilt, v, -tilt, v) == pytest.approx(0.0, abs=1e-3)
+
+
+def test_distance_weights_root_by_five_and_head_by_half(robot):
+    metric = PostureDistance.for_robot(robot)
+    v = np.zeros(robot.n_joints)
+    pitch = np.array([math.cos(0.1), 0, math.sin(0.1), 0])  # 0.2 rad tilt: dis Q = 0.1
+    assert metric(np.array([1.0, 0, 0, 0]), v, pitch, v) == pytest.approx(5 * 0.1)
+    head = v.copy()
+    head[robot.joint_index("head_pan")] = 0.4
+    assert metric(pitch, v, pitch, head) == pytest.approx(math.sqrt(0.5) * 0.4)
+
+
+def test_distance_is_vectorised_over_batches(robot):
+    metric = PostureDistance.for_robot(robot)
+    rng = np.random.default_rng(2)
+    quats = rng.normal(size=(50, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    joints = rng.uniform(robot.joint_lower, robot.joint_upper, size=(50, robot.n_joints))
+    batch = metric(quats[0], joints[0], quats, joints)
+    one_by_one = [metric(quats[0], joints[0], q, j) for q, j in zip(quats, joints)]
+    assert batch.shape == (50,)
+    assert np.allclose(batch, one_by_one)
