@@ -3,7 +3,12 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-slow bench clean
+.PHONY: demo test test-slow bench clean system-deps
+
+# System packages for headless rendering and browser tests (Mesa EGL, Chromium); a no-op where
+# they are present or where the script is absent.
+system-deps:
+	@if [ -x .ci/system-deps ]; then .ci/system-deps; fi
 
 $(BIN)/robot-rise: pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -11,10 +16,10 @@ $(BIN)/robot-rise: pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $@
 
-demo: $(BIN)/robot-rise
+demo: $(BIN)/robot-rise system-deps
 	$(BIN)/robot-rise demo --out out/demo
 
-test: $(BIN)/robot-rise
+test: $(BIN)/robot-rise system-deps
 	$(BIN)/python -m pytest -q
 
 test-slow: $(BIN)/robot-rise
