@@ -1,0 +1,352 @@
+"""Control tables of the supported servo models, as data.
+
+Addresses and sizes follow the ROBOTIS e-manual pages of each model (X series, Protocol 2.0;
+MX-28 with the "(2.0)" firmware inherits the X layout). See ``../shared/facts/dynamixel.md``.
+Addresses below 64 are EEPROM: writable only with Torque Enable = 0.
+
+Units of raw values (what ``drivers`` converts, nothing else does):
+    position: 4096 ticks per revolution, 2048 = centre.
+    velocity: 0.229 rev/min per unit.
+    current: 2.69 mA per unit (XM430-W350, XM540-W270); XL430-W250 and MX-28(2.0) report
+        Present Load in 0.1 % of the maximum instead.
+    voltage: 0.1 V per unit; temperature: 1 degC per unit; bus watchdog: 20 ms per unit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+from drivers.errors import ControlTableError
+
+__all__ = [
+    "Register",
+    "ControlTable",
+    "control_table",
+    "model_for_number",
+    "SUPPORTED_MODELS",
+    "EEPROM_END",
+    "MEMORY_SIZE",
+    "TICKS_PER_REV",
+    "CENTER_TICKS",
+    "RAD_PER_TICK",
+    "VELOCITY_UNIT_RAD_S",
+    "VOLTAGE_UNIT_V",
+    "WATCHDOG_UNIT_S",
+    "RETURN_DELAY_UNIT_S",
+    "HardwareError",
+    "INDIRECT_ADDRESS_1",
+    "INDIRECT_DATA_1",
+    "INDIRECT_COUNT",
+]
+
+EEPROM_END = 64  # addresses < 64 are EEPROM (write-protected while torque is on)
+MEMORY_SIZE = 662  # bytes: up to Indirect Data 56 (634 + 28)
+TICKS_PER_REV = 4096
+CENTER_TICKS = 2048
+RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_REV  # [rad/tick]
+VELOCITY_UNIT_RAD_S = 0.229 * 2.0 * math.pi / 60.0  # [rad/s per unit] (0.229 rev/min)
+VOLTAGE_UNIT_V = 0.1  # [V per unit]
+WATCHDOG_UNIT_S = 0.020  # [s per unit] Bus Watchdog
+RETURN_DELAY_UNIT_S = 2e-6  # [s per unit] Return Delay Time
+INDIRECT_ADDRESS_1 = 168  # Indirect Address 1..28 at 168 + 2k (2 bytes each)
+INDIRECT_DATA_1 = 224  # Indirect Data 1..28 at 224 + k (1 byte each)
+INDIRECT_COUNT = 28
+
+
+class HardwareError:
+    """Bits of the Hardware Error Status register (address 70)."""
+
+    INPUT_VOLTAGE = 0x01
+    OVERHEATING = 0x04
+    MOTOR_ENCODER = 0x08
+    ELECTRICAL_SHOCK = 0x10
+    OVERLOAD = 0x20
+
+    NAMES = {
+        0x01: "input voltage",
+        0x04: "overheating",
+        0x08: "motor encoder",
+        0x10: "electrical shock",
+        0x20: "overload",
+    }
+
+    @classmethod
+    def describe(cls, bits: int) -> str:
+        """E.g. ``"overheating, overload"``; ``"none"`` for 0."""
+        names = [name for bit, name in cls.NAMES.items() if bits & bit]
+        return ", ".join(names) or "none"
+
+
+@dataclass(frozen=True)
+class Register:
+    """One control-table entry.
+
+    Attributes:
+        name: snake_case name, e.g. ``"goal_position"``.
+        address: byte address.
+        size: 1, 2 or 4 bytes (little endian).
+        writable: RW (True) or R (False).
+        signed: two's complement.
+    """
+
+    name: str
+    address: int
+    size: int
+    writable: bool = True
+    signed: bool = False
+
+    @property
+    def eeprom(self) -> bool:
+        return self.address < EEPROM_END
+
+    def encode(self, value: int) -> bytes:
+        """Raw little-endian bytes of ``value`` (wrapped to the register width)."""
+        mask = (1 << (8 * self.size)) - 1
+        return (int(value) & mask).to_bytes(self.size, "little")
+
+    def decode(self, data: bytes) -> int:
+        """Integer value of ``data`` (exactly ``size`` bytes)."""
+        return int.from_bytes(data, "little", signed=self.signed)
+
+
+def _x_series_rows() -> list[Register]:
+    R = Register
+    rows = [
+        R("model_number", 0, 2, False),
+        R("model_information", 2, 4, False),
+        R("firmware_version", 6, 1, False),
+        R("id", 7, 1),
+        R("baud_rate", 8, 1),
+        R("return_delay_time", 9, 1),
+        R("drive_mode", 10, 1),
+        R("operating_mode", 11, 1),
+        R("secondary_id", 12, 1),
+        R("protocol_type", 13, 1),
+        R("homing_offset", 20, 4, signed=True),
+        R("moving_threshold", 24, 4),
+        R("temperature_limit", 31, 1),
+        R("max_voltage_limit", 32, 2),
+        R("min_voltage_limit", 34, 2),
+        R("pwm_limit", 36, 2),
+        R("current_limit", 38, 2),
+        R("velocity_limit", 44, 4),
+        R("max_position_limit", 48, 4),
+        R("min_position_limit", 52, 4),
+        R("shutdown", 63, 1),
+        R("torque_enable", 64, 1),
+        R("led", 65, 1),
+        R("status_return_level", 68, 1),
+        R("registered_instruction", 69, 1, False),
+        R("hardware_error_status", 70, 1, False),
+        R("velocity_i_gain", 76, 2),
+        R("velocity_p_gain", 78, 2),
+        R("position_d_gain", 80, 2),
+        R("position_i_gain", 82, 2),
+        R("position_p_gain", 84, 2),
+        R("feedforward_2nd_gain", 88, 2),
+        R("feedforward_1st_gain", 90, 2),
+        R("bus_watchdog", 98, 1, signed=True),
+        R("goal_pwm", 100, 2, signed=True),
+        R("goal_current", 102, 2, signed=True),
+        R("goal_velocity", 104, 4, signed=True),
+        R("profile_acceleration", 108, 4),
+        R("profile_velocity", 112, 4),
+        R("goal_position", 116, 4, signed=True),
+        R("realtime_tick", 120, 2, False),
+        R("moving", 122, 1, False),
+        R("moving_status", 123, 1, False),
+        R("present_pwm", 124, 2, False, signed=True),
+        R("present_current", 126, 2, False, signed=True),
+        R("present_velocity", 128, 4, False, signed=True),
+        R("present_position", 132, 4, False, signed=True),
+        R("velocity_trajectory", 136, 4, False, signed=True),
+        R("position_trajectory", 140, 4, False, signed=True),
+        R("present_input_voltage", 144, 2, False),
+        R("present_temperature", 146, 1, False),
+    ]
+    for k in range(INDIRECT_COUNT):
+        rows.append(R(f"indirect_address_{k + 1}", INDIRECT_ADDRESS_1 + 2 * k, 2))
+        rows.append(R(f"indirect_data_{k + 1}", INDIRECT_DATA_1 + k, 1))
+    for k in range(INDIRECT_COUNT):
+        rows.append(R(f"indirect_address_{k + 29}", 578 + 2 * k, 2))
+        rows.append(R(f"indirect_data_{k + 29}", 634 + k, 1))
+    return rows
+
+
+@dataclass(frozen=True)
+class ControlTable:
+    """The register table of one servo model plus its factory defaults and units.
+
+    Attributes:
+        model: model name as written in the servo map, e.g. ``"XM430-W350"``.
+        model_number: value of register ``model_number``.
+        registers: name -> :class:`Register` (read-only mapping).
+        defaults: name -> factory default raw value (registers not listed default to 0).
+        current_unit_a: [A per unit] of ``present_current``, or ``None`` when the model reports
+            Present Load (0.1 % units) at that address instead.
+        operating_modes: the values ``operating_mode`` accepts.
+        fast_sync_read_min_firmware: first firmware version answering Fast Sync Read.
+        stall_torque_nm: datasheet stall torque at 12 V [N m] (for the emulator's load model).
+        no_load_speed_rad_s: datasheet no-load speed at 12 V [rad/s].
+    """
+
+    model: str
+    model_number: int
+    registers: Mapping[str, Register]
+    defaults: Mapping[str, int]
+    current_unit_a: float | None
+    operating_modes: frozenset[int]
+    fast_sync_read_min_firmware: int = 45
+    stall_torque_nm: float = 4.1
+    no_load_speed_rad_s: float = 46 * 2 * math.pi / 60
+    _by_address: Mapping[int, Register] = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "_by_address", MappingProxyType({r.address: r for r in self.registers.values()})
+        )
+
+    def __getitem__(self, name: str) -> Register:
+        try:
+            return self.registers[name]
+        except KeyError:
+            raise ControlTableError(
+                f"{self.model} has no register {name!r}",
+                hint="valid names: " + ", ".join(n for n in self.registers if not n.startswith("indirect")),
+            ) from None
+
+    def has(self, name: str) -> bool:
+        return name in self.registers
+
+    def at(self, address: int) -> Register | None:
+        """The register starting at ``address``, if any."""
+        return self._by_address.get(address)
+
+    def default_memory(self) -> bytearray:
+        """A full memory image (``MEMORY_SIZE`` bytes) holding the factory defaults."""
+        mem = bytearray(MEMORY_SIZE)
+        for name, value in self.defaults.items():
+            reg = self.registers[name]
+            mem[reg.address : reg.address + reg.size] = reg.encode(value)
+        return mem
+
+
+def _table(
+    model: str,
+    model_number: int,
+    *,
+    drop: tuple[str, ...] = (),
+    rename: Mapping[str, str] | None = None,
+    defaults: Mapping[str, int],
+    current_unit_a: float | None,
+    operating_modes: frozenset[int],
+    stall_torque_nm: float,
+    no_load_rpm: float,
+) -> ControlTable:
+    rows = {}
+    for r in _x_series_rows():
+        if r.name in drop:
+            continue
+        name = (rename or {}).get(r.name, r.name)
+        rows[name] = Register(name, r.address, r.size, r.writable, r.signed)
+    base_defaults = {
+        "model_number": model_number,
+        "firmware_version": 46,
+        "id": 1,
+        "baud_rate": 1,
+        "return_delay_time": 250,
+        "operating_mode": 3,
+        "protocol_type": 2,
+        "secondary_id": 255,
+        "moving_threshold": 10,
+        "temperature_limit": 80,
+        "max_voltage_limit": 160,
+        "min_voltage_limit": 95,
+        "pwm_limit": 885,
+        "velocity_limit": 200,
+        "max_position_limit": 4095,
+        "min_position_limit": 0,
+        "shutdown": 52,
+        "status_return_level": 2,
+        "goal_pwm": 885,
+        "present_input_voltage": 120,
+        "present_temperature": 30,
+        "present_position": CENTER_TICKS,
+        "goal_position": CENTER_TICKS,
+    }
+    base_defaults.update(defaults)
+    return ControlTable(
+        model=model,
+        model_number=model_number,
+        registers=MappingProxyType(rows),
+        defaults=MappingProxyType({k: v for k, v in base_defaults.items() if k in rows}),
+        current_unit_a=current_unit_a,
+        operating_modes=operating_modes,
+        stall_torque_nm=stall_torque_nm,
+        no_load_speed_rad_s=no_load_rpm * 2 * math.pi / 60,
+    )
+
+
+_TABLES: dict[str, ControlTable] = {
+    t.model: t
+    for t in (
+        _table(
+            "XM430-W350", 1020,
+            defaults={"current_limit": 1193, "goal_current": 1193, "position_p_gain": 800,
+                      "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=4.1, no_load_rpm=46,
+        ),
+        _table(
+            "XM540-W270", 1120,
+            defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 900,
+                      "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=10.6, no_load_rpm=30,
+        ),
+        _table(
+            "XL430-W250", 1060,
+            drop=("current_limit", "goal_current"), rename={"present_current": "present_load"},
+            defaults={"position_p_gain": 640, "position_d_gain": 4000, "velocity_limit": 265,
+                      "velocity_i_gain": 1000, "velocity_p_gain": 100, "max_voltage_limit": 140,
+                      "min_voltage_limit": 60, "temperature_limit": 72},
+            current_unit_a=None, operating_modes=frozenset({1, 3, 4, 16}),
+            stall_torque_nm=1.5, no_load_rpm=61,
+        ),
+        _table(
+            "MX-28(2.0)", 30,
+            drop=("current_limit", "goal_current"), rename={"present_current": "present_load"},
+            defaults={"position_p_gain": 850, "velocity_limit": 230, "velocity_i_gain": 1920,
+                      "velocity_p_gain": 100, "max_voltage_limit": 160, "min_voltage_limit": 95},
+            current_unit_a=None, operating_modes=frozenset({1, 3, 4, 16}),
+            stall_torque_nm=2.5, no_load_rpm=55,
+        ),
+    )
+}
+
+SUPPORTED_MODELS: tuple[str, ...] = tuple(_TABLES)
+
+
+def control_table(model: str) -> ControlTable:
+    """The :class:`ControlTable` of ``model`` (e.g. ``"XM430-W350"``).
+
+    Raises:
+        ControlTableError: unknown model (the message lists the supported ones).
+    """
+    try:
+        return _TABLES[model]
+    except KeyError:
+        raise ControlTableError(
+            f"unknown servo model {model!r}", hint="supported models: " + ", ".join(SUPPORTED_MODELS)
+        ) from None
+
+
+def model_for_number(model_number: int) -> ControlTable | None:
+    """The table whose ``model_number`` matches, or ``None``."""
+    for table in _TABLES.values():
+        if table.model_number == model_number:
+            return table
+    return None

@@ -1,0 +1,343 @@
+"""The streaming executor: a fixed-rate loop that sends safe targets and watches feedback.
+
+Single-threaded against a monotonic deadline: cycle k starts at ``t0 + k / rate``. Each cycle:
+interpolate the trajectory, pass the target through :func:`drivers.safety.safe_target`, one
+sync write of goals, one (fast) sync read of feedback, judge it with
+:func:`drivers.safety.evaluate_feedback`, log a row. On a fault or Ctrl-C: a controlled stop by
+policy, then (for HOLD) bounded recovery of shut-down servos so the robot keeps holding.
+
+The trajectory is plain arrays (joint names, t, q); nothing here knows robot_rise types.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.errors import SafetyError
+from drivers.group import GOAL_PWM, Feedback, ServoGroup
+from drivers.safety import (
+    Fault,
+    FaultKind,
+    SafetyLimits,
+    StopPolicy,
+    approach_path,
+    check_start,
+    evaluate_feedback,
+    limp_pwm_ramp,
+    safe_target,
+)
+from drivers.startup import RecoveryReport, disarm_watchdog, recover
+
+__all__ = ["ExecutorConfig", "CycleStats", "ExecutionReport", "Executor", "interpolate"]
+
+_log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExecutorConfig:
+    """Executor settings.
+
+    Attributes:
+        rate_hz: control rate [Hz].
+        speed: trajectory time scale (0.5 = half speed).
+        approach_s: if set, move from the present posture to the first target over at least
+            this many seconds [s] before the trajectory.
+        stop_policy: what to do on abort, Ctrl-C or the end.
+        limp_s: duration of the Goal PWM ramp of a LIMP stop [s].
+        hold_s: time to keep streaming the final target after the trajectory ends [s].
+        recovery_attempts: automatic recovery attempts per shut-down servo after an abort.
+        log_path: CSV log of commanded vs present per cycle (None: no log).
+    """
+
+    rate_hz: float = 100.0
+    speed: float = 1.0
+    approach_s: float | None = None
+    stop_policy: StopPolicy = StopPolicy.HOLD
+    limp_s: float = 1.0
+    hold_s: float = 0.2
+    recovery_attempts: int = 2
+    log_path: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not 1.0 <= self.rate_hz <= 2000.0:
+            raise SafetyError(f"rate_hz {self.rate_hz} outside 1..2000 Hz")
+        if not 0.0 < self.speed <= 2.0:
+            raise SafetyError(f"speed {self.speed} outside (0, 2]")
+
+
+@dataclass(frozen=True)
+class CycleStats:
+    """Timing statistics over all cycles.
+
+    Attributes:
+        cycles: number of cycles run.
+        period_s: nominal period [s].
+        jitter_p50_s / jitter_p99_s / jitter_max_s: lateness of cycle starts [s].
+        deadline_misses: cycles whose work overran the period.
+        work_mean_s / work_max_s: wall time of a cycle's work [s].
+        cpu_mean_s: host CPU time per cycle, emulator excluded when measurable [s].
+    """
+
+    cycles: int
+    period_s: float
+    jitter_p50_s: float
+    jitter_p99_s: float
+    jitter_max_s: float
+    deadline_misses: int
+    work_mean_s: float
+    work_max_s: float
+    cpu_mean_s: float
+
+    @staticmethod
+    def from_samples(period_s: float, lateness: Sequence[float], work: Sequence[float],
+                     cpu: Sequence[float]) -> "CycleStats":
+        if not lateness:
+            return CycleStats(0, period_s, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0.0)
+        late = np.asarray(lateness)
+        w = np.asarray(work)
+        return CycleStats(
+            cycles=len(late), period_s=period_s,
+            jitter_p50_s=float(np.percentile(late, 50)), jitter_p99_s=float(np.percentile(late, 99)),
+            jitter_max_s=float(late.max()), deadline_misses=int(np.sum(w > period_s)),
+            work_mean_s=float(w.mean()), work_max_s=float(w.max()), cpu_mean_s=float(np.mean(cpu)),
+        )
+
+
+@dataclass(frozen=True)
+class ExecutionReport:
+    """Outcome of one execution.
+
+    Attributes:
+        completed: the whole trajectory ran without a fault.
+        faults: faults that caused the stop (empty if completed).
+        stats: :class:`CycleStats`.
+        max_tracking_error_rad: largest |present - previous command| seen [rad].
+        clamped_cycles: cycles in which the safety layer changed the target.
+        stop_policy: the policy applied at the end.
+        recovery: recovery outcome if one was attempted.
+        log_path: where the per-cycle log went.
+    """
+
+    completed: bool
+    faults: tuple[Fault, ...]
+    stats: CycleStats
+    max_tracking_error_rad: float
+    clamped_cycles: int
+    stop_policy: StopPolicy
+    recovery: RecoveryReport | None = None
+    log_path: Path | None = None
+    commands: FloatArray | None = field(default=None, repr=False)
+
+    @property
+    def interrupted(self) -> bool:
+        return any(f.kind is FaultKind.INTERRUPTED for f in self.faults)
+
+
+def interpolate(t: FloatArray, q: FloatArray, tau: float) -> FloatArray:
+    """Linear interpolation of ``q`` (shape (T, n)) at time ``tau`` [s]; clamped at the ends."""
+    if tau <= t[0]:
+        return q[0].copy()
+    if tau >= t[-1]:
+        return q[-1].copy()
+    i = int(np.searchsorted(t, tau, side="right"))
+    a = (tau - t[i - 1]) / (t[i] - t[i - 1])
+    return q[i - 1] + a * (q[i] - q[i - 1])
+
+
+class Executor:
+    """Streams one trajectory to a :class:`ServoGroup` under the safety layer.
+
+    Args:
+        group: the engaged servo group (torque on, watchdog armed).
+        limits: :class:`SafetyLimits` in map order.
+        config: :class:`ExecutorConfig`.
+    """
+
+    def __init__(self, group: ServoGroup, limits: SafetyLimits, config: ExecutorConfig | None = None) -> None:
+        self.group = group
+        self.limits = limits
+        self.config = config or ExecutorConfig()
+        if len(limits.lower_rad) != len(group.ids):
+            raise SafetyError(f"limits for {len(limits.lower_rad)} joints, group has {len(group.ids)}")
+
+    def prepare(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray,
+                q_present: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Map the trajectory onto servo order, check the start, prepend an approach.
+
+        Args:
+            joint_names: trajectory columns.
+            t: sample times [s], shape (T,), increasing.
+            q: joint angles [rad], shape (T, len(joint_names)).
+            q_present: present posture in map order [rad], shape (n,).
+
+        Returns:
+            (t [s] shape (T',), q [rad] shape (T', n)) in map order, time-scaled by ``speed``.
+
+        Raises:
+            SafetyError: bad shapes, or the start is far from the present posture and no
+                approach was requested.
+        """
+        t = np.asarray(t, dtype=float)
+        q = np.asarray(q, dtype=float)
+        if t.ndim != 1 or q.ndim != 2 or q.shape != (t.size, len(joint_names)) or t.size < 1:
+            raise SafetyError(f"trajectory shapes t{t.shape} q{q.shape} do not match {len(joint_names)} joints")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise SafetyError("trajectory times must increase strictly")
+        if not np.all(np.isfinite(q)):
+            raise SafetyError("trajectory contains NaN or infinite angles")
+        idx = self.group.map.index_of(joint_names)
+        qm = q[:, idx]
+        tm = (t - t[0]) / self.config.speed
+        start = check_start(qm[0], q_present, self.limits)
+        if self.config.approach_s is None:
+            if not start.ok:
+                name = self.group.map.servos[start.worst_index].joint
+                raise SafetyError(
+                    f"first target is {start.max_error_rad:.3f} rad from the present posture at {name} "
+                    f"(tolerance {self.limits.start_tolerance_rad} rad)",
+                    hint=f"request a slow approach (--approach {max(2.0, math.ceil(start.min_approach_s * 2)):.0f})"
+                         " or pose the robot at the trajectory's start")
+            return tm, qm
+        ta, qa = approach_path(q_present, qm[0], self.config.approach_s, self.limits)
+        return np.concatenate([ta, ta[-1] + 0.01 + tm]), np.vstack([qa, qm])
+
+    def run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
+        """Execute; returns a report (faults are reported, not raised)."""
+        cfg, group, limits = self.config, self.group, self.limits
+        clock = group.bus.clock
+        fb0 = group.read_feedback()
+        if not fb0.valid.all():
+            missing = [sid for sid, ok in zip(group.ids, fb0.valid) if not ok]
+            raise SafetyError(f"no present position from servo(s) {missing}; refusing to start")
+        t_run, q_run = self.prepare(joint_names, t, q, fb0.position_rad)
+        dt = 1.0 / cfg.rate_hz
+        t_end = float(t_run[-1]) + cfg.hold_s
+        n_cycles = int(math.floor(t_end / dt)) + 1
+        # a clamped command may still be catching up at the end: keep streaming until it has
+        # reached the final target, within at most the time the step limit needs (+1 s)
+        q_final = np.clip(q_run[-1], limits.lower_rad, limits.upper_rad)
+        span = float(np.max(limits.upper_rad - limits.lower_rad))
+        max_cycles = n_cycles + int(math.ceil((span / limits.max_velocity_rad_s + 1.0) / dt))
+        port = group.bus.port
+        log = _CycleLog(cfg.log_path, group.map.joint_names) if cfg.log_path else None
+        lateness: list[float] = []
+        work: list[float] = []
+        cpu: list[float] = []
+        q_prev = np.clip(fb0.position_rad, limits.lower_rad, limits.upper_rad)
+        q_tracked = fb0.position_rad.copy()  # what the servos were last told (for tracking error)
+        commands: list[FloatArray] = []
+        faults: list[Fault] = []
+        max_track = 0.0
+        clamped_cycles = 0
+        last_fb: Feedback = fb0
+        k = 0
+        t0 = clock.now()
+        try:
+            for k in range(max_cycles):
+                t_nominal = t0 + k * dt
+                now = clock.now()
+                if now < t_nominal:
+                    clock.sleep(t_nominal - now)
+                start = clock.now()
+                lateness.append(start - t_nominal)
+                c0 = time.thread_time()
+                e0 = getattr(port, "emulator_time_s", 0.0)
+                q_des = interpolate(t_run, q_run, k * dt)
+                q_cmd, clamped = safe_target(q_des, q_prev, limits, dt)
+                clamped_cycles += clamped
+                group.write_goals(q_cmd)
+                fb = group.read_feedback()
+                for sid in group.readmitted:  # back from quarantine: restart from where it is
+                    j = group.ids.index(sid)
+                    if fb.valid[j]:
+                        q_cmd[j] = float(np.clip(fb.position_rad[j], limits.lower_rad[j], limits.upper_rad[j]))
+                commands.append(q_cmd)
+                found = evaluate_feedback(
+                    limits, q_command_rad=q_tracked, q_present_rad=fb.position_rad, valid=fb.valid,
+                    hardware_error=fb.alert, temperature_c=fb.temperature_c, voltage_v=fb.voltage_v,
+                    consecutive_failures=group.consecutive_failures)
+                err = np.abs(fb.position_rad - q_tracked)[fb.valid]
+                if err.size:
+                    max_track = max(max_track, float(err.max()))
+                if log:
+                    log.row(k, start - t0, q_cmd, fb)
+                q_prev, q_tracked, last_fb = q_cmd, q_cmd, fb
+                cpu.append(time.thread_time() - c0 - (getattr(port, "emulator_time_s", 0.0) - e0))
+                work.append(clock.now() - start)
+                if found:
+                    faults = found
+                    for f in found:
+                        _log.error("abort: %s", f.message)
+                    break
+                if k + 1 >= n_cycles and float(np.max(np.abs(q_cmd - q_final))) < 1e-9:
+                    break
+        except KeyboardInterrupt:
+            faults = [Fault(FaultKind.INTERRUPTED, -1, 0, 0, "interrupted by the operator")]
+            _log.warning("interrupted: stopping by policy %s", cfg.stop_policy.value)
+        finally:
+            if log:
+                log.close()
+        recovery = self._stop(last_fb, faults)
+        stats = CycleStats.from_samples(dt, lateness, work, cpu)
+        return ExecutionReport(not faults, tuple(faults), stats, max_track, clamped_cycles,
+                               cfg.stop_policy, recovery, cfg.log_path,
+                               np.array(commands) if commands else None)
+
+    def _stop(self, fb: Feedback, faults: list[Fault]) -> RecoveryReport | None:
+        """Controlled stop by policy; never a jump (targets are the present positions)."""
+        group, cfg = self.group, self.config
+        clock = group.bus.clock
+        dt = 1.0 / cfg.rate_hz
+        try:
+            now_fb = group.read_feedback()
+        except Exception:  # noqa: BLE001 - stopping must go on with what we have
+            now_fb = fb
+        hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad)
+        ok = np.isfinite(hold)
+        skip = [sid for sid, good in zip(group.ids, ok) if not good]
+        group.write_goals(np.where(ok, hold, 0.0), skip=skip)
+        recovery = None
+        if cfg.stop_policy is StopPolicy.LIMP:
+            for pwm in limp_pwm_ramp(885, cfg.limp_s, dt):
+                group.write_all(GOAL_PWM, 2, int(pwm))
+                clock.sleep(dt)
+            group.torque(False)
+            disarm_watchdog(group)
+            return None
+        shut = [sid for sid, bits in zip(group.ids, now_fb.hardware_error) if bits]
+        if faults and shut and cfg.recovery_attempts > 0:
+            _log.warning("attempting recovery of servo(s) %s", shut)
+            recovery = recover(group, shut, attempts=cfg.recovery_attempts)
+        disarm_watchdog(group)
+        return recovery
+
+
+class _CycleLog:
+    """CSV: cycle, t [s], then cmd_<joint> [rad], pos_<joint> [rad], then error bytes."""
+
+    def __init__(self, path: Path, joints: Sequence[str]) -> None:
+        self._f: IO[str] = open(path, "w", encoding="utf-8")
+        cols = ["cycle", "t_s"] + [f"cmd_{j}" for j in joints] + [f"pos_{j}" for j in joints] + \
+               [f"err_{j}" for j in joints]
+        self._f.write(",".join(cols) + "\n")
+
+    def row(self, k: int, t: float, q_cmd: FloatArray, fb: Feedback) -> None:
+        parts = [str(k), f"{t:.6f}"]
+        parts += [f"{v:.5f}" for v in q_cmd]
+        parts += ["" if not np.isfinite(v) else f"{v:.5f}" for v in fb.position_rad]
+        parts += [str(int(e)) for e in fb.alert]
+        self._f.write(",".join(parts) + "\n")
+
+    def close(self) -> None:
+        self._f.close()

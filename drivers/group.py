@@ -1,0 +1,211 @@
+"""``ServoGroup``: the servos of one servo map on one bus, in joint units.
+
+Owns the per-cycle I/O: one sync write of goal positions and one (fast, where every servo's
+firmware supports it, else plain) sync read of the feedback block, which indirect addressing
+packs into 14 contiguous bytes at Indirect Data 1 (address 224):
+
+    present_position (4) | present_velocity (4) | present_current/load (2) |
+    hardware_error_status (1) | present_temperature (1) | present_input_voltage (2)
+
+Isolation: a failed Fast Sync Read falls back to a plain Sync Read, which yields partial
+results; a servo without data for ``quarantine_after`` cycles is quarantined (left out of the
+group reads so it no longer costs a timeout every cycle) and re-pinged every
+``reping_every`` cycles.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.bus import DynamixelBus, GroupRead
+from drivers.control_table import (
+    INDIRECT_ADDRESS_1,
+    INDIRECT_DATA_1,
+    VOLTAGE_UNIT_V,
+)
+from drivers.servo_map import ServoMap
+
+__all__ = ["FEEDBACK_LAYOUT", "FEEDBACK_SIZE", "Feedback", "ServoGroup"]
+
+_log = logging.getLogger(__name__)
+
+# (register address, size) packed by indirect addressing, in order
+FEEDBACK_LAYOUT: tuple[tuple[int, int], ...] = ((132, 4), (128, 4), (126, 2), (70, 1), (146, 1), (144, 2))
+FEEDBACK_SIZE = sum(n for _, n in FEEDBACK_LAYOUT)  # 14 bytes
+_FEEDBACK_STRUCT = struct.Struct("<iihBBH")
+GOAL_POSITION = 116
+TORQUE_ENABLE = 64
+GOAL_PWM = 100
+BUS_WATCHDOG = 98
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """One cycle's feedback in servo-map order; entries not read this cycle are NaN / 0.
+
+    Attributes:
+        t_s: clock time of the read [s].
+        position_rad: joint angles [rad], shape (n,).
+        velocity_rad_s: joint velocities [rad/s], shape (n,).
+        effort_raw: present current (2.69 mA units) or load (0.1 %) as read, shape (n,).
+        hardware_error: Hardware Error Status bits, shape (n,) int.
+        error_byte: status error byte per servo (bit 7 = alert), shape (n,) int.
+        temperature_c: [degC], shape (n,).
+        voltage_v: [V], shape (n,).
+        valid: data read this cycle, shape (n,) bool.
+    """
+
+    t_s: float
+    position_rad: NDArray[np.float64]
+    velocity_rad_s: NDArray[np.float64]
+    effort_raw: NDArray[np.float64]
+    hardware_error: NDArray[np.int64]
+    error_byte: NDArray[np.int64]
+    temperature_c: NDArray[np.float64]
+    voltage_v: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+
+    @property
+    def alert(self) -> NDArray[np.int64]:
+        """Hardware error bits, or 0x80 where only the status alert bit reported one."""
+        return np.where(self.hardware_error != 0, self.hardware_error, self.error_byte & 0x80)
+
+
+class ServoGroup:
+    """The servos of ``servo_map`` on ``bus``, spoken to in radians.
+
+    Args:
+        bus: the :class:`DynamixelBus`.
+        servo_map: which IDs, joints, directions and limits.
+        fast_read: use Fast Sync Read (set by :func:`drivers.startup.preflight` from firmware).
+        use_indirect: read the packed indirect block (set up by preflight); otherwise read
+            the contiguous span 126..147 plus hardware error status separately.
+        quarantine_after: consecutive missing reads before a servo is quarantined.
+        reping_every: cycles between re-pings of quarantined servos.
+    """
+
+    def __init__(self, bus: DynamixelBus, servo_map: ServoMap, *, fast_read: bool = False,
+                 use_indirect: bool = True, quarantine_after: int = 2, reping_every: int = 10) -> None:
+        self.bus = bus
+        self.map = servo_map
+        self.ids = servo_map.ids
+        self.fast_read = fast_read
+        self.use_indirect = use_indirect
+        self.quarantine_after = quarantine_after
+        self.reping_every = reping_every
+        self.consecutive_failures = np.zeros(len(self.ids), dtype=np.int64)
+        self.quarantined: set[int] = set()
+        self.readmitted: set[int] = set()  # servos back from quarantine since the last read
+        self._cycle = 0
+        self._index = {sid: k for k, sid in enumerate(self.ids)}
+        self._goal_reg = struct.Struct("<i")
+
+    # ---- configuration helpers ----------------------------------------------------------
+    def indirect_address_items(self) -> list[tuple[int, bytes]]:
+        """(address, data) writes that map the feedback block onto Indirect Data 1..14."""
+        out = []
+        k = 0
+        for address, size in FEEDBACK_LAYOUT:
+            for b in range(size):
+                out.append((INDIRECT_ADDRESS_1 + 2 * k, struct.pack("<H", address + b)))
+                k += 1
+        return out
+
+    # ---- writes ---------------------------------------------------------------------------
+    def write_goals(self, q_rad: NDArray[np.float64], *, skip: Sequence[int] = ()) -> NDArray[np.int64]:
+        """Sync-write goal positions for joint angles ``q_rad`` [rad], shape (n,).
+
+        Quarantined servos and ``skip`` IDs are left out. Returns the ticks sent, shape (n,).
+        """
+        ticks = self.map.to_ticks(q_rad)
+        pack = self._goal_reg.pack
+        data = {sid: pack(int(t)) for sid, t in zip(self.ids, ticks)
+                if sid not in self.quarantined and sid not in skip}
+        self.bus.sync_write(GOAL_POSITION, 4, data)
+        return ticks
+
+    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None) -> None:
+        """Sync-write the same raw ``value`` to a register span on ``ids`` (default all)."""
+        data = (int(value) & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
+        self.bus.sync_write(address, size, {sid: data for sid in (ids or self.ids)
+                                            if sid not in self.quarantined})
+
+    def torque(self, on: bool, ids: Sequence[int] | None = None) -> None:
+        """Torque Enable on all (or ``ids``) by sync write."""
+        self.write_all(TORQUE_ENABLE, 1, int(on), ids)
+
+    # ---- reads ----------------------------------------------------------------------------
+    def _raw_read(self, ids: list[int]) -> GroupRead:
+        if self.use_indirect:
+            if self.fast_read:
+                r = self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, ids, fast=True)
+                if r.complete:
+                    return r
+                _log.debug("fast sync read incomplete (%s); falling back to sync read", r.missing)
+                if r.data:  # partial fast data (error bytes) is still usable
+                    rest = [i for i in ids if i not in r.data]
+                    r2 = self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, rest)
+                    return GroupRead({**r.data, **r2.data}, {**r.errors, **r2.errors}, r2.missing)
+            return self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, ids)
+        # no indirect block: contiguous 126..147 (22 bytes) then hardware errors
+        r = self.bus.sync_read(126, 22, ids, fast=self.fast_read)
+        if self.fast_read and not r.complete:
+            r = self.bus.sync_read(126, 22, ids)
+        hw = self.bus.sync_read(70, 1, [i for i in ids if i in r.data])
+        data = {}
+        for sid, d in r.data.items():
+            cur, vel, pos = struct.unpack_from("<hii", d, 0)
+            volt, temp = struct.unpack_from("<HB", d, 18)
+            err = hw.data.get(sid, b"\x00")[0]
+            data[sid] = _FEEDBACK_STRUCT.pack(pos, vel, cur, err, temp, volt)
+        return GroupRead(data, r.errors, r.missing, r.fast)
+
+    def read_feedback(self) -> Feedback:
+        """One group read of the feedback block of every active servo, in joint units."""
+        self._cycle += 1
+        self.readmitted = set()
+        if self.quarantined and self._cycle % self.reping_every == 0:
+            self._reping()
+        ids = [i for i in self.ids if i not in self.quarantined]
+        r = self._raw_read(ids)
+        n = len(self.ids)
+        pos = np.zeros(n, dtype=np.int64)
+        vel = np.zeros(n, dtype=np.int64)
+        eff = np.full(n, np.nan)
+        hw = np.zeros(n, dtype=np.int64)
+        err = np.zeros(n, dtype=np.int64)
+        temp = np.full(n, np.nan)
+        volt = np.full(n, np.nan)
+        valid = np.zeros(n, dtype=bool)
+        unpack = _FEEDBACK_STRUCT.unpack
+        index = self._index
+        for sid, d in r.data.items():
+            k = index[sid]
+            p, v, c, h, t, u = unpack(d)
+            pos[k], vel[k], eff[k], hw[k], temp[k], volt[k] = p, v, c, h, t, u
+            valid[k] = True
+        for sid, e in r.errors.items():
+            err[index[sid]] = e
+        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
+        for sid in r.missing:
+            k = index[sid]
+            if self.consecutive_failures[k] >= self.quarantine_after and sid not in self.quarantined:
+                _log.warning("servo %d (%s) quarantined after %d missed reads", sid,
+                             self.map.servos[k].joint, self.consecutive_failures[k])
+                self.quarantined.add(sid)
+        q = np.where(valid, self.map.to_radians(pos), np.nan)
+        qd = np.where(valid, self.map.velocity_to_rad_s(vel), np.nan)
+        return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt * VOLTAGE_UNIT_V, valid)
+
+    def _reping(self) -> None:
+        for sid in sorted(self.quarantined):
+            if self.bus.ping(sid) is not None:
+                _log.warning("servo %d answers again; re-admitted", sid)
+                self.quarantined.discard(sid)
+                self.readmitted.add(sid)

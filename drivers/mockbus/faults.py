@@ -1,0 +1,102 @@
+"""Fault injection for the emulated bus.
+
+A :class:`FaultInjector` is a controller object (mutable on purpose) that the emulator consults
+for every reply. Tests script faults directly (``faults.silence(3)``) or at a time on the bus
+clock (``faults.at(1.5, lambda bus: bus.faults.silence(3))``).
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from drivers.mockbus.bus import MockBus
+
+__all__ = ["FaultInjector", "ScheduledFault"]
+
+
+@dataclass
+class ScheduledFault:
+    """An action run once when the bus clock passes ``at_s``."""
+
+    at_s: float
+    action: Callable[["MockBus"], None]
+    done: bool = False
+
+
+@dataclass
+class FaultInjector:
+    """Faults the emulator applies.
+
+    Attributes:
+        silent_ids: servos that never answer (as if unplugged); they still hear writes if
+            ``deaf`` is False.
+        deaf_ids: servos that ignore every packet (no writes applied either).
+        drop_probability: chance that a status packet is not sent.
+        corrupt_probability: chance that one byte of a status packet is flipped.
+        truncate_probability: chance that a status packet is cut short.
+        extra_latency_s: added to every reply [s].
+        input_voltage_v: supply voltage every servo sees [V] (per-ID override in
+            ``voltage_by_id``).
+        heating_gain: multiplies the emulator's I^2 heating (temperature rise under load).
+        seed: seed of the fault RNG (reproducible).
+    """
+
+    silent_ids: set[int] = field(default_factory=set)
+    deaf_ids: set[int] = field(default_factory=set)
+    drop_probability: float = 0.0
+    corrupt_probability: float = 0.0
+    truncate_probability: float = 0.0
+    extra_latency_s: float = 0.0
+    input_voltage_v: float = 12.0
+    voltage_by_id: dict[int, float] = field(default_factory=dict)
+    heating_gain: float = 1.0
+    pending_hardware_errors: dict[int, int] = field(default_factory=dict)
+    scheduled: list[ScheduledFault] = field(default_factory=list)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self._rng = random.Random(self.seed)
+
+    # ---- scripting helpers -----------------------------------------------------------
+    def silence(self, servo_id: int) -> None:
+        self.silent_ids.add(servo_id)
+
+    def restore(self, servo_id: int) -> None:
+        self.silent_ids.discard(servo_id)
+        self.deaf_ids.discard(servo_id)
+
+    def hardware_error(self, servo_id: int, bits: int) -> None:
+        """Raise hardware error ``bits`` (see ``HardwareError``) on ``servo_id`` at the next step."""
+        self.pending_hardware_errors[servo_id] = self.pending_hardware_errors.get(servo_id, 0) | bits
+
+    def at(self, at_s: float, action: Callable[["MockBus"], None]) -> None:
+        """Run ``action(bus)`` once the bus clock reaches ``at_s`` [s]."""
+        self.scheduled.append(ScheduledFault(at_s, action))
+
+    def voltage_of(self, servo_id: int) -> float:
+        return self.voltage_by_id.get(servo_id, self.input_voltage_v)
+
+    # ---- used by the emulator ----------------------------------------------------------
+    def due(self, now_s: float) -> list[ScheduledFault]:
+        out = [f for f in self.scheduled if not f.done and f.at_s <= now_s]
+        for f in out:
+            f.done = True
+        return out
+
+    def mangle(self, reply: bytes) -> bytes | None:
+        """Apply the random reply faults; ``None`` means the reply is dropped."""
+        rng = self._rng
+        if self.drop_probability and rng.random() < self.drop_probability:
+            return None
+        if self.truncate_probability and rng.random() < self.truncate_probability:
+            return reply[: rng.randrange(0, len(reply))]
+        if self.corrupt_probability and rng.random() < self.corrupt_probability:
+            k = rng.randrange(len(reply))
+            b = bytearray(reply)
+            b[k] ^= 1 << rng.randrange(8)
+            return bytes(b)
+        return reply

@@ -1,0 +1,264 @@
+"""The safety layer: pure functions every command goes through, never bypassed.
+
+- Targets are clamped to the joint limits, then to a per-cycle step (velocity limit).
+- A trajectory whose first target is far from the present posture is refused unless a slow
+  approach from the present posture is requested (:func:`check_start`, :func:`approach_path`).
+- Each cycle's feedback is judged by :func:`evaluate_feedback`: tracking error, hardware error
+  bits, temperature, input voltage, consecutive communication failures.
+- Stop policies: hold the present position, or go limp slowly (Goal PWM ramps to zero, then
+  torque off). Never a jump: a stop target is always the present position.
+
+All angles in [rad], arrays in servo-map order, shape (n,) unless stated.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.control_table import HardwareError
+from drivers.errors import SafetyError
+
+__all__ = [
+    "SafetyLimits",
+    "StopPolicy",
+    "FaultKind",
+    "Fault",
+    "StartCheck",
+    "clamp_to_limits",
+    "clamp_step",
+    "safe_target",
+    "check_start",
+    "approach_path",
+    "evaluate_feedback",
+    "limp_pwm_ramp",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+class StopPolicy(enum.Enum):
+    """What the servos do after an abort, Ctrl-C or the end of a trajectory."""
+
+    HOLD = "hold"  # goal = present position, torque stays on
+    LIMP = "limp"  # goal = present, Goal PWM ramps to 0 over the limp time, then torque off
+
+
+class FaultKind(enum.Enum):
+    TRACKING = "tracking error"
+    HARDWARE = "hardware error"
+    TEMPERATURE = "temperature"
+    VOLTAGE = "input voltage"
+    COMMUNICATION = "communication"
+    INTERRUPTED = "interrupted"
+    DEADLINE = "deadline"
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One reason to stop.
+
+    Attributes:
+        kind: :class:`FaultKind`.
+        index: joint index in map order (-1 for the whole bus).
+        value: measured value (rad, degC, V, count ...).
+        limit: the threshold it crossed.
+        message: one human line.
+    """
+
+    kind: FaultKind
+    index: int
+    value: float
+    limit: float
+    message: str
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """Thresholds of the safety layer.
+
+    Attributes:
+        lower_rad: lower joint limits [rad], shape (n,).
+        upper_rad: upper joint limits [rad], shape (n,).
+        max_velocity_rad_s: command step limit per cycle = this x cycle period [rad/s].
+        max_tracking_error_rad: abort when |present - last command| exceeds it [rad].
+        start_tolerance_rad: largest first-target distance from the present posture accepted
+            without an approach [rad].
+        approach_velocity_rad_s: speed of an approach move [rad/s] (sets its minimum duration).
+        max_temperature_c: abort above this [degC].
+        min_voltage_v: abort below this input voltage [V].
+        max_voltage_v: abort above this input voltage [V].
+        max_comm_failures: abort after this many consecutive cycles without a servo's data.
+    """
+
+    lower_rad: FloatArray
+    upper_rad: FloatArray
+    max_velocity_rad_s: float = 3.0
+    max_tracking_error_rad: float = 0.35
+    start_tolerance_rad: float = 0.1
+    approach_velocity_rad_s: float = 0.3
+    max_temperature_c: float = 70.0
+    min_voltage_v: float = 10.0
+    max_voltage_v: float = 14.8
+    max_comm_failures: int = 5
+
+    def __post_init__(self) -> None:
+        lo = np.array(self.lower_rad, dtype=float)
+        hi = np.array(self.upper_rad, dtype=float)
+        if lo.shape != hi.shape or lo.ndim != 1:
+            raise SafetyError(f"limit arrays must have the same shape (n,), got {lo.shape} and {hi.shape}")
+        if np.any(lo >= hi):
+            raise SafetyError("every lower limit must be below its upper limit")
+        for name in ("max_velocity_rad_s", "max_tracking_error_rad", "approach_velocity_rad_s"):
+            if not getattr(self, name) > 0:
+                raise SafetyError(f"{name} must be positive")
+        if self.max_comm_failures < 1:
+            raise SafetyError("max_comm_failures must be >= 1")
+        lo.setflags(write=False)
+        hi.setflags(write=False)
+        object.__setattr__(self, "lower_rad", lo)
+        object.__setattr__(self, "upper_rad", hi)
+
+    def max_step_rad(self, dt_s: float) -> float:
+        """Largest command change in one cycle of ``dt_s`` [s]."""
+        return self.max_velocity_rad_s * dt_s
+
+
+def clamp_to_limits(q_rad: FloatArray, lower_rad: FloatArray, upper_rad: FloatArray) -> FloatArray:
+    """Clip ``q_rad`` (shape (..., n)) into [lower, upper]; NaN or inf is refused.
+
+    Raises:
+        SafetyError: a target is NaN or infinite.
+    """
+    q = np.asarray(q_rad, dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise SafetyError("target contains NaN or infinite values")
+    return np.minimum(np.maximum(q, lower_rad), upper_rad)
+
+
+def clamp_step(q_target_rad: FloatArray, q_previous_rad: FloatArray, max_step_rad: float) -> FloatArray:
+    """Limit each joint's change from ``q_previous_rad`` to ``max_step_rad`` [rad]."""
+    step = np.clip(np.asarray(q_target_rad, dtype=float) - q_previous_rad, -max_step_rad, max_step_rad)
+    return q_previous_rad + step
+
+
+def safe_target(q_desired_rad: FloatArray, q_previous_rad: FloatArray, limits: SafetyLimits,
+                dt_s: float) -> tuple[FloatArray, bool]:
+    """The command actually sent: limits clamp, then step clamp.
+
+    ``q_previous_rad`` must itself be within limits (it is the previous command, or the present
+    posture clamped), so the result is within limits too.
+
+    Returns:
+        (command [rad] shape (n,), True if any clamp changed the desired target).
+    """
+    q_lim = clamp_to_limits(q_desired_rad, limits.lower_rad, limits.upper_rad)
+    prev = clamp_to_limits(q_previous_rad, limits.lower_rad, limits.upper_rad)
+    q_cmd = clamp_step(q_lim, prev, limits.max_step_rad(dt_s))
+    clamped = bool(np.any(np.abs(q_cmd - np.asarray(q_desired_rad)) > 1e-12))
+    return q_cmd, clamped
+
+
+@dataclass(frozen=True)
+class StartCheck:
+    """Distance between the present posture and the first target.
+
+    Attributes:
+        ok: within tolerance.
+        max_error_rad: largest absolute joint difference [rad].
+        worst_index: joint index of that difference.
+        min_approach_s: shortest approach at the approach velocity [s].
+    """
+
+    ok: bool
+    max_error_rad: float
+    worst_index: int
+    min_approach_s: float
+
+
+def check_start(q_first_rad: FloatArray, q_present_rad: FloatArray, limits: SafetyLimits) -> StartCheck:
+    """Compare the trajectory's first target with the present posture."""
+    diff = np.abs(np.asarray(q_first_rad, dtype=float) - np.asarray(q_present_rad, dtype=float))
+    if not np.all(np.isfinite(diff)):
+        return StartCheck(False, math.inf, int(np.argmax(~np.isfinite(diff))), math.inf)
+    worst = int(np.argmax(diff))
+    err = float(diff[worst])
+    return StartCheck(err <= limits.start_tolerance_rad, err, worst, err / limits.approach_velocity_rad_s)
+
+
+def approach_path(q_present_rad: FloatArray, q_first_rad: FloatArray, duration_s: float,
+                  limits: SafetyLimits) -> tuple[FloatArray, FloatArray]:
+    """A minimum-jerk move from the present posture to the first target.
+
+    The duration is raised to what the approach velocity allows (peak speed of a minimum-jerk
+    move is 1.875 x distance / duration).
+
+    Returns:
+        (t [s] shape (K,), q [rad] shape (K, n)) sampled at 100 Hz, starting at t = 0.
+    """
+    q0 = clamp_to_limits(q_present_rad, limits.lower_rad, limits.upper_rad)
+    q1 = clamp_to_limits(q_first_rad, limits.lower_rad, limits.upper_rad)
+    dist = float(np.max(np.abs(q1 - q0))) if q0.size else 0.0
+    duration = max(duration_s, 1.875 * dist / limits.approach_velocity_rad_s, 0.02)
+    n = max(2, int(math.ceil(duration * 100)) + 1)
+    t = np.linspace(0.0, duration, n)
+    s = t / duration
+    blend = 10 * s**3 - 15 * s**4 + 6 * s**5
+    return t, q0 + blend[:, None] * (q1 - q0)
+
+
+def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray, q_present_rad: FloatArray,
+                      valid: NDArray[np.bool_], hardware_error: NDArray[np.int64],
+                      temperature_c: FloatArray, voltage_v: FloatArray,
+                      consecutive_failures: NDArray[np.int64]) -> list[Fault]:
+    """Judge one cycle's feedback. Pure: returns every fault found (empty list = carry on).
+
+    Args:
+        q_command_rad: the command the servos have been tracking [rad], shape (n,).
+        q_present_rad: present positions [rad] (NaN where not valid), shape (n,).
+        valid: which entries were read this cycle, shape (n,).
+        hardware_error: Hardware Error Status bits (or just the alert bit 0x80), shape (n,).
+        temperature_c: [degC], shape (n,).
+        voltage_v: [V], shape (n,).
+        consecutive_failures: cycles in a row without data, per servo, shape (n,).
+    """
+    faults: list[Fault] = []
+    for i in np.flatnonzero(consecutive_failures >= limits.max_comm_failures):
+        faults.append(Fault(FaultKind.COMMUNICATION, int(i), float(consecutive_failures[i]),
+                            limits.max_comm_failures,
+                            f"joint {i}: no data for {int(consecutive_failures[i])} consecutive cycles"))
+    v = np.asarray(valid, dtype=bool)
+    for i in np.flatnonzero(v & (np.asarray(hardware_error) != 0)):
+        bits = int(hardware_error[i])
+        text = "alert bit set" if bits == 0x80 else HardwareError.describe(bits & 0x7F)
+        faults.append(Fault(FaultKind.HARDWARE, int(i), bits, 0, f"joint {i}: hardware error ({text})"))
+    err = np.abs(np.asarray(q_present_rad) - np.asarray(q_command_rad))
+    for i in np.flatnonzero(v & (err > limits.max_tracking_error_rad)):
+        faults.append(Fault(FaultKind.TRACKING, int(i), float(err[i]), limits.max_tracking_error_rad,
+                            f"joint {i}: tracking error {err[i]:.3f} rad > {limits.max_tracking_error_rad} rad"))
+    temp = np.asarray(temperature_c)
+    for i in np.flatnonzero(v & (temp > limits.max_temperature_c)):
+        faults.append(Fault(FaultKind.TEMPERATURE, int(i), float(temp[i]), limits.max_temperature_c,
+                            f"joint {i}: temperature {temp[i]:.0f} C > {limits.max_temperature_c} C"))
+    volt = np.asarray(voltage_v)
+    bad_v = v & ((volt < limits.min_voltage_v) | (volt > limits.max_voltage_v))
+    for i in np.flatnonzero(bad_v):
+        faults.append(Fault(FaultKind.VOLTAGE, int(i), float(volt[i]),
+                            limits.min_voltage_v if volt[i] < limits.min_voltage_v else limits.max_voltage_v,
+                            f"joint {i}: input voltage {volt[i]:.1f} V outside "
+                            f"{limits.min_voltage_v}..{limits.max_voltage_v} V"))
+    return faults
+
+
+def limp_pwm_ramp(pwm_limit: int, duration_s: float, dt_s: float) -> NDArray[np.int64]:
+    """Goal PWM values for a slow limp: linear from ``pwm_limit`` to 0 over ``duration_s`` [s].
+
+    Returns:
+        Integer PWM per cycle, shape (K,), last value 0.
+    """
+    n = max(1, int(math.ceil(duration_s / dt_s)))
+    return np.rint(np.linspace(pwm_limit, 0, n + 1)[1:]).astype(np.int64)

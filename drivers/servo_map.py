@@ -1,0 +1,279 @@
+"""The servo map (``servos.toml``, format ``robot-rise/servos@1``) and radians <-> ticks.
+
+This is the only place where joint angles become servo ticks:
+``ticks = 2048 + direction * (angle + zero_offset) * 4096 / (2 pi)``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.control_table import CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.errors import ControlTableError, ServoMapError
+
+__all__ = [
+    "SERVO_MAP_FORMAT",
+    "BusSpec",
+    "ServoSpec",
+    "ServoMap",
+    "load_servo_map",
+    "parse_servo_map",
+]
+
+SERVO_MAP_FORMAT = "robot-rise/servos@1"
+_DEFAULT_LIMIT_RAD = 3.14  # [rad] default joint limit: just inside one turn of position mode
+_SUPPORTED_BAUDS = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+
+
+@dataclass(frozen=True)
+class BusSpec:
+    """Bus settings.
+
+    Attributes:
+        baud_rate: [bit/s].
+        return_delay_time_us: servo reply delay [us] (control table unit is 2 us).
+    """
+
+    baud_rate: int = 1_000_000
+    return_delay_time_us: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.baud_rate not in _SUPPORTED_BAUDS:
+            raise ServoMapError(
+                f"baud_rate {self.baud_rate} is not a Dynamixel baud rate",
+                hint="use one of " + ", ".join(map(str, _SUPPORTED_BAUDS)),
+            )
+        if not 0 <= self.return_delay_time_us <= 508:
+            raise ServoMapError(f"return_delay_time_us {self.return_delay_time_us} outside 0..508")
+
+    @property
+    def baud_index(self) -> int:
+        """Value of the Baud Rate register for ``baud_rate``."""
+        return {9600: 0, 57600: 1, 115200: 2, 1_000_000: 3, 2_000_000: 4, 3_000_000: 5,
+                4_000_000: 6, 4_500_000: 7}[self.baud_rate]
+
+    @property
+    def return_delay_units(self) -> int:
+        """Value of the Return Delay Time register (2 us units)."""
+        return int(round(self.return_delay_time_us / 2.0))
+
+
+@dataclass(frozen=True)
+class ServoSpec:
+    """One servo of the map.
+
+    Attributes:
+        id: bus ID 0..252.
+        joint: joint name in the robot model.
+        model: servo model name (see ``drivers.control_table.SUPPORTED_MODELS``).
+        direction: +1 or -1.
+        zero_offset: [rad] added to the joint angle before conversion.
+        min: lower joint limit [rad].
+        max: upper joint limit [rad].
+    """
+
+    id: int
+    joint: str
+    model: str
+    direction: int = 1
+    zero_offset: float = 0.0
+    min: float = -_DEFAULT_LIMIT_RAD
+    max: float = _DEFAULT_LIMIT_RAD
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.id <= 252:
+            raise ServoMapError(f"servo id {self.id} outside 0..252 (joint {self.joint!r})")
+        if self.direction not in (1, -1):
+            raise ServoMapError(f"direction of servo {self.id} must be 1 or -1, not {self.direction}")
+        if not self.min < self.max:
+            raise ServoMapError(f"servo {self.id} ({self.joint}): min {self.min} must be < max {self.max}")
+        try:
+            control_table(self.model)
+        except ControlTableError as e:
+            raise ServoMapError(f"servo {self.id} ({self.joint}): {e}", hint=e.hint) from None
+        lo, hi = sorted((self.to_ticks(self.min), self.to_ticks(self.max)))
+        if lo < 0 or hi > 4095:
+            raise ServoMapError(
+                f"servo {self.id} ({self.joint}): limits map to ticks {lo}..{hi}, outside 0..4095",
+                hint="check zero_offset and limits (position mode covers one turn)",
+            )
+
+    @property
+    def table(self) -> ControlTable:
+        return control_table(self.model)
+
+    def to_ticks(self, angle_rad: float) -> int:
+        """Goal position ticks for joint angle ``angle_rad`` [rad]."""
+        return int(round(CENTER_TICKS + self.direction * (angle_rad + self.zero_offset) / RAD_PER_TICK))
+
+    def to_radians(self, ticks: int) -> float:
+        """Joint angle [rad] for ``ticks``."""
+        return self.direction * (ticks - CENTER_TICKS) * RAD_PER_TICK - self.zero_offset
+
+    @property
+    def limit_ticks(self) -> tuple[int, int]:
+        """(min, max) position limits in ticks, for the EEPROM position-limit registers."""
+        a, b = self.to_ticks(self.min), self.to_ticks(self.max)
+        return (min(a, b), max(a, b))
+
+
+@dataclass(frozen=True)
+class ServoMap:
+    """All servos of one bus, in file order.
+
+    Attributes:
+        robot: robot name.
+        bus: :class:`BusSpec`.
+        servos: tuple of :class:`ServoSpec`, in file order (this order defines the joint vector
+            order of every array in ``drivers``).
+    """
+
+    robot: str
+    bus: BusSpec
+    servos: tuple[ServoSpec, ...]
+
+    def __post_init__(self) -> None:
+        if not self.servos:
+            raise ServoMapError("servo map has no [[servo]] rows")
+        ids = [s.id for s in self.servos]
+        joints = [s.joint for s in self.servos]
+        for what, values in (("id", ids), ("joint", joints)):
+            dup = sorted({v for v in values if values.count(v) > 1}, key=str)
+            if dup:
+                raise ServoMapError(f"duplicate servo {what}(s) in servo map: {dup}")
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(s.id for s in self.servos)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(s.joint for s in self.servos)
+
+    def __len__(self) -> int:
+        return len(self.servos)
+
+    def by_id(self, servo_id: int) -> ServoSpec:
+        for s in self.servos:
+            if s.id == servo_id:
+                return s
+        raise ServoMapError(f"no servo with id {servo_id}", hint=f"ids in the map: {list(self.ids)}")
+
+    def by_joint(self, joint: str) -> ServoSpec:
+        for s in self.servos:
+            if s.joint == joint:
+                return s
+        raise ServoMapError(f"no servo drives joint {joint!r}", hint="joints: " + ", ".join(self.joint_names))
+
+    def index_of(self, joint_names: Sequence[str]) -> NDArray[np.intp]:
+        """Column indices mapping a trajectory's ``joint_names`` onto map order.
+
+        Returns:
+            Array shape (len(self),): ``q_map = q_traj[..., idx]``.
+
+        Raises:
+            ServoMapError: a mapped joint is missing from ``joint_names``.
+        """
+        pos = {name: k for k, name in enumerate(joint_names)}
+        missing = [j for j in self.joint_names if j not in pos]
+        if missing:
+            raise ServoMapError(
+                f"trajectory lacks joint(s) {missing} driven by servos",
+                hint="the trajectory must name every joint of the servo map",
+            )
+        return np.array([pos[j] for j in self.joint_names], dtype=np.intp)
+
+    # ---- vectorised conversions (map order) ----------------------------------------
+    @property
+    def lower_rad(self) -> NDArray[np.float64]:
+        """Lower joint limits [rad], shape (n,)."""
+        return np.array([s.min for s in self.servos])
+
+    @property
+    def upper_rad(self) -> NDArray[np.float64]:
+        """Upper joint limits [rad], shape (n,)."""
+        return np.array([s.max for s in self.servos])
+
+    def _dir_off(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return (np.array([s.direction for s in self.servos], dtype=float),
+                np.array([s.zero_offset for s in self.servos]))
+
+    def to_ticks(self, q_rad: NDArray[np.float64]) -> NDArray[np.int64]:
+        """Joint angles [rad], shape (..., n) -> goal ticks, same shape (int64)."""
+        d, off = self._dir_off()
+        return np.rint(CENTER_TICKS + d * (np.asarray(q_rad) + off) / RAD_PER_TICK).astype(np.int64)
+
+    def to_radians(self, ticks: NDArray[np.int64]) -> NDArray[np.float64]:
+        """Ticks, shape (..., n) -> joint angles [rad], same shape."""
+        d, off = self._dir_off()
+        return d * (np.asarray(ticks, dtype=float) - CENTER_TICKS) * RAD_PER_TICK - off
+
+    def velocity_to_rad_s(self, raw: NDArray[np.int64]) -> NDArray[np.float64]:
+        """Present Velocity raw units, shape (..., n) -> joint velocity [rad/s]."""
+        from drivers.control_table import VELOCITY_UNIT_RAD_S
+
+        d, _ = self._dir_off()
+        return d * np.asarray(raw, dtype=float) * VELOCITY_UNIT_RAD_S
+
+
+def parse_servo_map(data: Mapping[str, object], *, source: str = "servo map") -> ServoMap:
+    """Build a :class:`ServoMap` from parsed TOML ``data``."""
+    fmt = data.get("format")
+    if fmt != SERVO_MAP_FORMAT:
+        raise ServoMapError(
+            f"{source}: format is {fmt!r}, expected {SERVO_MAP_FORMAT!r}",
+            hint="start the file with format = \"robot-rise/servos@1\"",
+        )
+    bus_raw = data.get("bus", {})
+    if not isinstance(bus_raw, Mapping):
+        raise ServoMapError(f"{source}: [bus] must be a table")
+    if float(bus_raw.get("protocol", 2.0)) != 2.0:
+        raise ServoMapError(f"{source}: only Dynamixel protocol 2.0 is supported")
+    bus = BusSpec(
+        baud_rate=int(bus_raw.get("baud_rate", 1_000_000)),
+        return_delay_time_us=float(bus_raw.get("return_delay_time_us", 0.0)),
+    )
+    rows = data.get("servo")
+    if not isinstance(rows, list):
+        raise ServoMapError(f"{source}: no [[servo]] rows")
+    allowed = {"id", "joint", "model", "direction", "zero_offset", "min", "max"}
+    servos = []
+    for k, row in enumerate(rows):
+        if not isinstance(row, Mapping):
+            raise ServoMapError(f"{source}: servo row {k} is not a table")
+        unknown = set(row) - allowed
+        if unknown:
+            raise ServoMapError(f"{source}: servo row {k} has unknown key(s) {sorted(unknown)}",
+                                hint="allowed keys: " + ", ".join(sorted(allowed)))
+        for key in ("id", "joint", "model"):
+            if key not in row:
+                raise ServoMapError(f"{source}: servo row {k} lacks {key!r}")
+        servos.append(ServoSpec(
+            id=int(row["id"]), joint=str(row["joint"]), model=str(row["model"]),
+            direction=int(row.get("direction", 1)), zero_offset=float(row.get("zero_offset", 0.0)),
+            min=float(row.get("min", -_DEFAULT_LIMIT_RAD)), max=float(row.get("max", _DEFAULT_LIMIT_RAD)),
+        ))
+    return ServoMap(robot=str(data.get("robot", "")), bus=bus, servos=tuple(servos))
+
+
+def load_servo_map(path: str | Path) -> ServoMap:
+    """Read a ``servos.toml`` file.
+
+    Raises:
+        ServoMapError: missing file, TOML syntax error or invalid content.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ServoMapError(f"servo map {path} not found", hint="pass the robot's servos.toml") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ServoMapError(f"{path}: {e}") from e
+    return parse_servo_map(data, source=str(path))

@@ -1,0 +1,82 @@
+"""Connecting to a servo bus in one call: a real port, or an emulated bus from the servo map."""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from drivers.bus import DynamixelBus
+from drivers.clock import Clock, MonotonicClock
+from drivers.group import ServoGroup
+from drivers.port import LatencyTimer, ensure_low_latency, open_port
+from drivers.servo_map import ServoMap
+
+__all__ = ["Connection", "connect", "mock_url_for"]
+
+_log = logging.getLogger(__name__)
+_counter = itertools.count()
+
+
+@dataclass
+class Connection:
+    """An open bus with its servo group (close it, or use it as a context manager)."""
+
+    group: ServoGroup
+    url: str
+    latency: LatencyTimer
+
+    @property
+    def bus(self) -> DynamixelBus:
+        return self.group.bus
+
+    def close(self) -> None:
+        self.group.bus.close()
+
+    def __enter__(self) -> "Connection":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
+                 wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0) -> str:
+    """Attach an emulated bus holding the servos of ``servo_map`` and return its ``dxlsim://`` URL.
+
+    Args:
+        initial_rad: starting joint angles by joint name [rad] (others start at 0, clamped).
+        wire_timing: replies take their wire time at the map's baud rate.
+    """
+    import drivers.mockbus as mb
+
+    init = {}
+    for s in servo_map.servos:
+        q = (initial_rad or {}).get(s.joint, 0.0)
+        init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
+    bus = mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
+                     clock=clock or MonotonicClock(), wire_timing=wire_timing,
+                     initial_position_ticks=init, return_delay_units=return_delay_units)
+    return mb.attach(f"{servo_map.robot or 'bus'}{next(_counter)}", bus)
+
+
+def connect(servo_map: ServoMap, port: str, *, baud_rate: int | None = None,
+            clock: Clock | None = None) -> Connection:
+    """Open ``port`` (device path or pyserial URL) for ``servo_map``'s servos.
+
+    The adapter's latency timer is lowered where possible (FTDI), and reported otherwise.
+    """
+    baud = baud_rate or servo_map.bus.baud_rate
+    latency = ensure_low_latency(port)
+    _log.info("%s: %s", port, latency.note)
+    if clock is None and port.startswith("dxlsim://"):
+        import drivers.mockbus as mb
+
+        emu = mb.attached(port.removeprefix("dxlsim://"))
+        clock = emu.clock if emu is not None else None
+    clock = clock or MonotonicClock()
+    serial_port = open_port(port, baud)
+    bus = DynamixelBus(serial_port, baud_rate=baud, clock=clock,
+                       return_delay_s=servo_map.bus.return_delay_time_us * 1e-6 + 50e-6)
+    return Connection(ServoGroup(bus, servo_map), port, latency)

@@ -1,0 +1,240 @@
+"""Start-up, engage, stop and recovery sequences on a :class:`~drivers.group.ServoGroup`.
+
+Preflight (:func:`preflight`): ping every expected ID and check its model number; read the
+EEPROM settings we depend on (operating mode, return delay, position limits, drive mode) and
+write only those that differ, with torque off; map the indirect feedback block; decide whether
+Fast Sync Read can be used (every servo's firmware must support it).
+
+Engage (:func:`engage`): goal = present position, then torque on, then arm the Bus Watchdog.
+
+Recovery (:func:`recover`): a bounded number of attempts per servo: reboot, wait, ping,
+re-apply the RAM settings, goal = present, torque on.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from dataclasses import dataclass, field
+
+from drivers.bus import PingResult
+from drivers.control_table import WATCHDOG_UNIT_S, HardwareError, model_for_number
+from drivers.errors import CommunicationError, PreflightError, ServoStatusError
+from drivers.group import BUS_WATCHDOG, GOAL_POSITION, TORQUE_ENABLE, ServoGroup
+from drivers.servo_map import ServoSpec
+
+__all__ = [
+    "SettingChange",
+    "PreflightReport",
+    "RecoveryReport",
+    "DRIVE_MODE_TIME_BASED",
+    "preflight",
+    "engage",
+    "arm_watchdog",
+    "disarm_watchdog",
+    "recover",
+    "desired_eeprom",
+]
+
+_log = logging.getLogger(__name__)
+
+POSITION_MODE = 3
+DRIVE_MODE_TIME_BASED = 0x04  # bit 2: time-based profile; we need velocity-based (cleared)
+
+
+@dataclass(frozen=True)
+class SettingChange:
+    """One EEPROM/RAM setting that preflight changed (or would change)."""
+
+    servo_id: int
+    register: str
+    old: int
+    new: int
+
+
+@dataclass(frozen=True)
+class PreflightReport:
+    """What preflight found and did.
+
+    Attributes:
+        found: ping results by ID.
+        changes: settings written because they differed.
+        fast_read: Fast Sync Read is used.
+        hardware_errors: ``{id: bits}`` found at start.
+    """
+
+    found: dict[int, PingResult]
+    changes: tuple[SettingChange, ...]
+    fast_read: bool
+    hardware_errors: dict[int, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RecoveryReport:
+    """Outcome of :func:`recover`."""
+
+    recovered: tuple[int, ...]
+    failed: tuple[int, ...]
+    attempts: int
+    messages: tuple[str, ...]
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+
+def desired_eeprom(spec: ServoSpec, return_delay_units: int) -> dict[str, int]:
+    """EEPROM values the driver relies on for ``spec`` (register name -> raw value)."""
+    lo, hi = spec.limit_ticks
+    return {
+        "operating_mode": POSITION_MODE,
+        "return_delay_time": return_delay_units,
+        "min_position_limit": lo,
+        "max_position_limit": hi,
+        "drive_mode": 0,  # direction is handled in software; velocity-based profile
+    }
+
+
+def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = True) -> PreflightReport:
+    """Check and configure the bus before any motion (see module docstring).
+
+    Raises:
+        PreflightError: a servo is missing, has the wrong model, or a setting cannot be written.
+    """
+    bus, smap = group.bus, group.map
+    found = bus.scan(smap.ids)
+    missing = [i for i in smap.ids if i not in found]
+    if missing and require_all:
+        raise PreflightError(
+            f"servo(s) {missing} did not answer ({len(found)}/{len(smap)} found)",
+            hint="check power and cabling; robot-rise servos scan --port PORT lists what answers")
+    wrong = []
+    for sid, r in found.items():
+        spec = smap.by_id(sid)
+        if r.model_number != spec.table.model_number:
+            actual = model_for_number(r.model_number)
+            wrong.append(f"id {sid} ({spec.joint}) is {actual.model if actual else r.model_number}, "
+                         f"map says {spec.model}")
+    if wrong:
+        raise PreflightError("model mismatch: " + "; ".join(wrong), hint="fix servos.toml or the wiring")
+    hw_errors: dict[int, int] = {}
+    changes: list[SettingChange] = []
+    rd_units = smap.bus.return_delay_units
+    for sid in found:
+        spec = smap.by_id(sid)
+        table = spec.table
+        hw = bus.read_value(sid, table["hardware_error_status"])
+        if hw:
+            hw_errors[sid] = hw
+            _log.warning("servo %d: hardware error at start: %s", sid, HardwareError.describe(hw))
+        want = desired_eeprom(spec, rd_units)
+        diffs = []
+        for name, value in want.items():
+            old = bus.read_value(sid, table[name])
+            if old != value:
+                diffs.append(SettingChange(sid, name, old, value))
+        if diffs and configure:
+            bus.write_value(sid, table["torque_enable"], 0)
+            for c in diffs:
+                _log.info("servo %d: %s %d -> %d", sid, c.register, c.old, c.new)
+                try:
+                    bus.write_value(sid, table[c.register], c.new)
+                except ServoStatusError as e:
+                    raise PreflightError(f"cannot set {c.register} on servo {sid}: {e}",
+                                         hint="is the value supported by this model?") from e
+        changes.extend(diffs)
+    if configure:
+        apply_ram_settings(group, list(found))
+    fast = all(r.firmware_version >= smap.by_id(i).table.fast_sync_read_min_firmware for i, r in found.items())
+    group.fast_read = fast
+    return PreflightReport(found, tuple(changes), fast, hw_errors)
+
+
+def apply_ram_settings(group: ServoGroup, ids: list[int]) -> None:
+    """(Re)write the RAM settings: indirect feedback map, status return level, Goal PWM.
+
+    Indirect addresses are written with torque off (as EEPROM-like protection may apply).
+    """
+    bus = group.bus
+    for sid in ids:
+        table = group.map.by_id(sid).table
+        torque = bus.read_value(sid, table["torque_enable"])
+        if torque:
+            bus.write_value(sid, table["torque_enable"], 0)
+        if group.use_indirect:
+            items = group.indirect_address_items()
+            blob = b"".join(d for _, d in items)
+            bus.write(sid, items[0][0], blob)
+        bus.write_value(sid, table["status_return_level"], 2)
+        bus.write_value(sid, table["goal_pwm"], bus.read_value(sid, table["pwm_limit"]))
+        if torque:
+            bus.write_value(sid, table["torque_enable"], 1)
+
+
+def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:
+    """Goal = present position, torque on, then arm the Bus Watchdog (``None`` to skip).
+
+    Raises:
+        CommunicationError: a servo did not report its position.
+    """
+    fb = group.read_feedback()
+    if not fb.valid.all():
+        missing = [sid for sid, ok in zip(group.ids, fb.valid) if not ok]
+        raise CommunicationError(f"no present position from servo(s) {missing}; not engaging")
+    group.write_goals(fb.position_rad)
+    group.torque(True)
+    if watchdog_s is not None:
+        arm_watchdog(group, watchdog_s)
+
+
+def arm_watchdog(group: ServoGroup, timeout_s: float) -> int:
+    """Arm every servo's Bus Watchdog at ``timeout_s`` [s] (20 ms units, 1..127); returns units."""
+    units = max(1, min(127, int(round(timeout_s / WATCHDOG_UNIT_S))))
+    group.write_all(BUS_WATCHDOG, 1, 0)  # clear a tripped state first
+    group.write_all(BUS_WATCHDOG, 1, units)
+    return units
+
+
+def disarm_watchdog(group: ServoGroup) -> None:
+    group.write_all(BUS_WATCHDOG, 1, 0)
+
+
+def recover(group: ServoGroup, ids: list[int], *, attempts: int = 2, boot_wait_s: float = 0.1,
+            torque_on: bool = True) -> RecoveryReport:
+    """Try to bring shut-down or silent servos back: reboot, re-apply RAM settings,
+    goal = present, torque on. At most ``attempts`` tries per servo."""
+    bus = group.bus
+    recovered, failed, messages = [], [], []
+    total = 0
+    for sid in ids:
+        table = group.map.by_id(sid).table
+        ok = False
+        for attempt in range(1, attempts + 1):
+            total += 1
+            try:
+                bus.reboot(sid)
+            except CommunicationError as e:
+                messages.append(f"servo {sid}: reboot attempt {attempt} got no reply ({e})")
+            bus.clock.sleep(boot_wait_s)
+            if bus.ping(sid) is None:
+                messages.append(f"servo {sid}: silent after reboot attempt {attempt}")
+                continue
+            try:
+                hw = bus.read_value(sid, table["hardware_error_status"])
+                if hw:
+                    messages.append(f"servo {sid}: still {HardwareError.describe(hw)} after reboot")
+                    continue
+                apply_ram_settings(group, [sid])
+                _, data = bus.read(sid, table["present_position"].address, 4)
+                bus.write(sid, GOAL_POSITION, data)
+                if torque_on:
+                    bus.write(sid, TORQUE_ENABLE, b"\x01")
+                group.quarantined.discard(sid)
+                ok = True
+                messages.append(f"servo {sid}: recovered on attempt {attempt} "
+                                f"(holding {struct.unpack('<i', data)[0]} ticks)")
+                break
+            except CommunicationError as e:
+                messages.append(f"servo {sid}: attempt {attempt} failed: {e}")
+        (recovered if ok else failed).append(sid)
+    return RecoveryReport(tuple(recovered), tuple(failed), total, tuple(messages))

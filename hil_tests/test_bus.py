@@ -1,0 +1,84 @@
+"""DynamixelBus and ServoGroup against the emulator: scan, group I/O, error bytes, isolation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.control_table import HardwareError
+from drivers.errors import ServoStatusError, ServoTimeout
+from drivers.startup import preflight
+from hil_tests.conftest import Rig
+
+
+def test_that_scan_finds_every_servo_and_its_model(rig: Rig) -> None:
+    found = rig.bus.scan(range(1, 23))
+    assert sorted(found) == list(range(1, 21)) and {r.model_number for r in found.values()} == {1020}
+
+
+def test_that_a_silent_servo_raises_a_timeout_naming_it(rig: Rig) -> None:
+    rig.mock.faults.silence(4)
+    with pytest.raises(ServoTimeout) as e:
+        rig.bus.read(4, 132, 4)
+    assert e.value.ids == (4,)
+
+
+def test_that_a_refused_write_raises_with_the_error_byte(rig: Rig) -> None:
+    rig.bus.write(1, 64, b"\x01")
+    with pytest.raises(ServoStatusError, match="access error") as e:
+        rig.bus.write(1, 11, b"\x04")
+    assert "torque off" in e.value.hint
+
+
+def test_that_group_feedback_is_read_in_radians_with_one_fast_read(rig: Rig) -> None:
+    report = preflight(rig.group)
+    assert report.fast_read
+    before = rig.bus.stats.packets_sent
+    fb = rig.group.read_feedback()
+    assert rig.bus.stats.packets_sent - before == 1
+    assert fb.valid.all() and np.allclose(fb.position_rad, 0.0) and np.allclose(fb.voltage_v, 12.0)
+
+
+def test_that_the_alert_bit_of_one_servo_is_surfaced_not_dropped(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.mock.faults.hardware_error(7, HardwareError.OVERHEATING)
+    rig.clock.sleep(0.01)
+    fb = rig.group.read_feedback()
+    k = rig.group.ids.index(7)
+    assert fb.error_byte[k] & 0x80 and fb.hardware_error[k] == HardwareError.OVERHEATING
+    assert fb.alert[k] and fb.valid.sum() == 20
+
+
+def test_that_one_silent_servo_costs_only_its_own_data_and_is_quarantined(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.mock.faults.silence(12)
+    k = rig.group.ids.index(12)
+    fb = rig.group.read_feedback()
+    assert not fb.valid[k] and fb.valid.sum() == 19
+    rig.group.read_feedback()
+    assert 12 in rig.group.quarantined
+    before = rig.clock.now()
+    fb = rig.group.read_feedback()  # quarantined: fast read of the 19 others, no timeout wait
+    assert fb.valid.sum() == 19 and rig.clock.now() - before < 0.001
+
+
+def test_that_a_quarantined_servo_is_readmitted_when_it_answers_a_reping(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.mock.faults.silence(3)
+    for _ in range(3):
+        rig.group.read_feedback()
+    rig.mock.faults.restore(3)
+    for _ in range(rig.group.reping_every):
+        fb = rig.group.read_feedback()
+        if rig.group.readmitted:
+            break
+    assert 3 not in rig.group.quarantined and fb.valid.all()
+
+
+def test_that_corrupted_replies_are_counted_and_never_taken_as_data(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.mock.faults.corrupt_probability = 0.3
+    for _ in range(30):
+        fb = rig.group.read_feedback()
+        assert np.all(np.abs(fb.position_rad[fb.valid]) < 1e-6)
+    assert rig.bus.stats.corrupt_replies + rig.bus.stats.fast_read_failures > 0

@@ -1,0 +1,220 @@
+"""The streaming executor on the emulator, nominal and under scripted faults.
+
+Every test checks, at byte level, that no goal position ever sent left the joint limits or
+moved more than the per-cycle step limit (:func:`_assert_goals_safe`).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+import pytest
+
+from drivers.control_table import RAD_PER_TICK, HardwareError
+from drivers.errors import SafetyError
+from drivers.executor import Executor, ExecutorConfig, interpolate
+from drivers.protocol import Instruction
+from drivers.safety import FaultKind, SafetyLimits, StopPolicy
+from drivers.servo_map import ServoMap
+from drivers.startup import engage, preflight
+from hil_tests.conftest import Rig, make_rig
+
+RATE = 100.0
+MAX_V = 3.0  # rad/s
+
+
+def _trajectory(servo_map: ServoMap, *, amplitude: float = 0.4, duration: float = 1.0):
+    t = np.linspace(0.0, duration, 11)
+    goal = np.clip(np.full(len(servo_map), amplitude), servo_map.lower_rad, servo_map.upper_rad)
+    q = (t / duration)[:, None] * goal[None, :]
+    return servo_map.joint_names, t, q
+
+
+def _ready(servo_map: ServoMap, **kw: object) -> Rig:
+    r = make_rig(servo_map, **kw)
+    preflight(r.group)
+    engage(r.group, watchdog_s=0.1)
+    return r
+
+
+def _run(r: Rig, traj=None, **cfg: object):
+    limits = r.limits(max_velocity_rad_s=MAX_V)
+    ex = Executor(r.group, limits, ExecutorConfig(rate_hz=RATE, **cfg))  # type: ignore[arg-type]
+    names, t, q = traj or _trajectory(r.servo_map)
+    return ex.run(names, t, q)
+
+
+def _goal_writes(r: Rig) -> list[dict[int, int]]:
+    out = []
+    for p in r.mock.log:
+        if p.instruction == Instruction.SYNC_WRITE and struct.unpack_from("<H", p.params)[0] == 116:
+            body = p.params[4:]
+            out.append({body[k]: struct.unpack_from("<i", body, k + 1)[0] for k in range(0, len(body), 5)})
+    return out
+
+
+def _assert_goals_safe(r: Rig) -> None:
+    """Every goal inside the limits; every streamed goal within one step of the previous one.
+
+    The final write of a stop is goal = present position, which may differ from the last
+    command by the tracking lag; it is checked against the present position instead.
+    """
+    step_ticks = math.ceil(MAX_V / RATE / RAD_PER_TICK) + 1
+    last: dict[int, int] = {}
+    writes = _goal_writes(r)
+    for sid, tick in writes[-1].items():
+        lo, hi = r.servo_map.by_id(sid).limit_ticks
+        assert lo <= tick <= hi
+        assert abs(tick - r.mock.servo(sid).get("present_position")) <= 3
+    for sid, tick in ((s, t) for w in writes[:-1] for s, t in w.items()):
+        lo, hi = r.servo_map.by_id(sid).limit_ticks
+        assert lo <= tick <= hi, f"servo {sid}: goal {tick} outside {lo}..{hi}"
+        if sid in last:
+            assert abs(tick - last[sid]) <= step_ticks, f"servo {sid}: step {tick - last[sid]} ticks"
+        last[sid] = tick
+
+
+def test_that_interpolation_is_linear_and_clamped_at_the_ends() -> None:
+    t = np.array([0.0, 1.0])
+    q = np.array([[0.0], [2.0]])
+    assert interpolate(t, q, 0.25)[0] == pytest.approx(0.5)
+    assert interpolate(t, q, -1)[0] == 0.0 and interpolate(t, q, 5)[0] == 2.0
+
+
+def test_that_a_nominal_trajectory_runs_to_the_end_and_logs_each_cycle(servo_map: ServoMap, tmp_path) -> None:
+    r = _ready(servo_map)
+    log = tmp_path / "run.csv"
+    rep = _run(r, log_path=log)
+    assert rep.completed and rep.faults == ()
+    assert rep.stats.cycles == int(1.2 * RATE) + 1
+    assert rep.max_tracking_error_rad < 0.1
+    lines = log.read_text().splitlines()
+    assert lines[0].startswith("cycle,t_s,cmd_r_sho_pitch") and len(lines) == rep.stats.cycles + 1
+    fb = r.group.read_feedback()
+    goal = np.clip(np.full(20, 0.4), servo_map.lower_rad, servo_map.upper_rad)
+    assert np.allclose(fb.position_rad, goal, atol=0.01)
+    _assert_goals_safe(r)
+
+
+def test_that_speed_scales_trajectory_time(servo_map: ServoMap) -> None:
+    rep = _run(_ready(servo_map), speed=0.5)
+    assert rep.completed and rep.stats.cycles == int(2.2 * RATE) + 1
+
+
+def test_that_a_far_start_is_refused_without_approach(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    names, t, q = _trajectory(servo_map)
+    q = q + 0.3
+    with pytest.raises(SafetyError, match="from the present posture") as e:
+        _run(r, (names, t, q))
+    assert "--approach" in e.value.hint
+    assert _goal_writes(r) == [] or all(len(w) == 20 for w in _goal_writes(r))
+
+
+def test_that_an_approach_moves_slowly_from_the_present_posture(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    names, t, q = _trajectory(servo_map)
+    q = np.clip(q + 0.3, servo_map.lower_rad, servo_map.upper_rad)
+    rep = _run(r, (names, t, q), approach_s=1.0)
+    assert rep.completed
+    _assert_goals_safe(r)
+
+
+def test_that_an_unsafe_trajectory_is_clamped_in_limits_and_step(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    names = servo_map.joint_names
+    t = np.array([0.0, 0.01, 0.5, 0.51])
+    q = np.zeros((4, 20))
+    q[1:3] = 5.0  # far outside limits and far too fast
+    rep = _run(r, (names, t, q), )
+    assert rep.clamped_cycles > 0
+    _assert_goals_safe(r)
+
+
+@pytest.mark.parametrize(
+    ("fault", "kind"),
+    [
+        (lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD), FaultKind.HARDWARE),
+        (lambda bus: bus.faults.silence(11), FaultKind.COMMUNICATION),
+        (lambda bus: setattr(bus.faults, "heating_gain", 3e4), FaultKind.TEMPERATURE),
+        (lambda bus: setattr(bus.faults, "input_voltage_v", 9.0), FaultKind.VOLTAGE),
+    ],
+    ids=["overload", "silent-servo", "overheating", "undervoltage"],
+)
+def test_that_each_fault_stops_the_run_safely_and_is_reported(servo_map: ServoMap, fault, kind) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.4, fault)
+    rep = _run(r)
+    assert not rep.completed and kind in {f.kind for f in rep.faults}
+    assert 0.35 * RATE < rep.stats.cycles < 0.6 * RATE
+    _assert_goals_safe(r)
+    # HOLD: the last goal is the present position of each answering servo (no jump)
+    last = _goal_writes(r)[-1]
+    for sid, tick in last.items():
+        emu = r.mock.servo(sid)
+        assert abs(tick - emu.get("present_position")) <= 3
+
+
+def test_that_recovery_brings_a_shut_down_servo_back_to_holding(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD))
+    rep = _run(r)
+    assert rep.recovery is not None and rep.recovery.recovered == (5,)
+    assert r.mock.servo(5).torque_on
+
+
+def test_that_occasional_corrupt_replies_do_not_abort_the_run(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.corrupt_probability = 0.02
+    rep = _run(r)
+    assert rep.completed, rep.faults
+    _assert_goals_safe(r)
+
+
+def test_that_ctrl_c_stops_by_policy_and_is_reported(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+
+    def interrupt(bus):
+        raise KeyboardInterrupt
+
+    r.mock.faults.at(r.clock.now() + 0.25, interrupt)
+    rep = _run(r)
+    assert rep.interrupted and not rep.completed
+    _assert_goals_safe(r)
+
+
+def test_that_limp_policy_ramps_pwm_down_then_turns_torque_off(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.silence(2))
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.5)
+    assert not rep.completed
+    pwm = [struct.unpack_from("<h", p.params, 5)[0] for p in r.mock.log
+           if p.instruction == Instruction.SYNC_WRITE and struct.unpack_from("<H", p.params)[0] == 100]
+    assert len(pwm) == 50 and pwm == sorted(pwm, reverse=True) and pwm[-1] == 0
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids if s != 2)
+
+
+def test_that_a_dead_host_trips_the_servo_watchdog(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+
+    def host_dies(bus):
+        raise SystemExit("host died")
+
+    r.mock.faults.at(r.clock.now() + 0.3, host_dies)
+    with pytest.raises(SystemExit):
+        _run(r)
+    r.clock.sleep(0.15)
+    r.mock.advance()
+    for sid in servo_map.ids:
+        emu = r.mock.servo(sid)
+        assert emu.get("bus_watchdog") == -1
+        assert abs(emu.get("goal_position") - emu.get("present_position")) <= 3
+
+
+def test_that_timing_stats_see_slow_replies(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.2, lambda bus: setattr(bus.faults, "extra_latency_s", 0.003))
+    rep = _run(r)
+    assert rep.completed and rep.stats.work_max_s >= 0.003 and rep.stats.deadline_misses == 0

@@ -1,0 +1,113 @@
+"""The safety layer's pure functions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.errors import SafetyError
+from drivers.safety import (
+    FaultKind,
+    SafetyLimits,
+    approach_path,
+    check_start,
+    clamp_step,
+    clamp_to_limits,
+    evaluate_feedback,
+    limp_pwm_ramp,
+    safe_target,
+)
+
+LO = np.array([-1.0, -0.5, 0.0])
+HI = np.array([1.0, 0.5, 2.0])
+
+
+def _limits(**kw: float) -> SafetyLimits:
+    return SafetyLimits(LO, HI, **kw)
+
+
+def _feedback(**over: object) -> dict:
+    n = 3
+    base = dict(q_command_rad=np.zeros(n), q_present_rad=np.zeros(n), valid=np.ones(n, bool),
+                hardware_error=np.zeros(n, np.int64), temperature_c=np.full(n, 40.0),
+                voltage_v=np.full(n, 12.0), consecutive_failures=np.zeros(n, np.int64))
+    base.update(over)
+    return base
+
+
+def test_that_targets_are_clamped_into_joint_limits() -> None:
+    assert clamp_to_limits(np.array([5.0, -5.0, 1.0]), LO, HI).tolist() == [1.0, -0.5, 1.0]
+
+
+def test_that_nan_targets_are_refused() -> None:
+    with pytest.raises(SafetyError, match="NaN"):
+        clamp_to_limits(np.array([np.nan, 0, 0]), LO, HI)
+
+
+def test_that_a_step_is_limited_per_joint() -> None:
+    out = clamp_step(np.array([1.0, -1.0, 0.01]), np.zeros(3), 0.05)
+    assert out.tolist() == [0.05, -0.05, 0.01]
+
+
+def test_that_safe_target_never_leaves_limits_or_exceeds_the_step_on_random_input() -> None:
+    rng = np.random.default_rng(0)
+    lim = _limits(max_velocity_rad_s=2.0)
+    prev = np.array([0.0, 0.0, 1.0])
+    for _ in range(2000):
+        desired = rng.normal(0, 3, 3)
+        cmd, _ = safe_target(desired, prev, lim, 0.01)
+        assert np.all(cmd >= LO) and np.all(cmd <= HI)
+        assert np.all(np.abs(cmd - prev) <= 0.02 + 1e-12)
+        prev = cmd
+
+
+def test_that_safe_target_reports_whether_it_clamped() -> None:
+    lim = _limits(max_velocity_rad_s=2.0)
+    assert safe_target(np.array([0.01, 0, 1.0]), np.array([0, 0, 1.0]), lim, 0.01)[1] is False
+    assert safe_target(np.array([0.5, 0, 1.0]), np.array([0, 0, 1.0]), lim, 0.01)[1] is True
+
+
+def test_that_a_far_start_is_flagged_with_the_worst_joint() -> None:
+    chk = check_start(np.array([0.0, 0.4, 1.0]), np.array([0.0, 0.0, 1.0]), _limits(start_tolerance_rad=0.1))
+    assert (chk.ok, chk.worst_index) == (False, 1) and chk.max_error_rad == pytest.approx(0.4)
+
+
+def test_that_the_approach_is_smooth_starts_at_present_and_respects_the_speed() -> None:
+    lim = _limits(approach_velocity_rad_s=0.5)
+    t, q = approach_path(np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.5, 2.0]), 0.1, lim)
+    assert np.allclose(q[0], 0) and np.allclose(q[-1], [1.0, 0.5, 2.0])
+    speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+    assert speed.max() <= 0.5 * 1.01
+
+
+def test_that_each_fault_kind_is_detected() -> None:
+    lim = _limits(max_tracking_error_rad=0.2, max_temperature_c=70, min_voltage_v=10, max_comm_failures=3)
+    cases = {
+        FaultKind.TRACKING: dict(q_present_rad=np.array([0.0, 0.3, 0.0])),
+        FaultKind.HARDWARE: dict(hardware_error=np.array([0, 0, 0x20])),
+        FaultKind.TEMPERATURE: dict(temperature_c=np.array([40.0, 71.0, 40.0])),
+        FaultKind.VOLTAGE: dict(voltage_v=np.array([9.0, 12.0, 12.0])),
+        FaultKind.COMMUNICATION: dict(consecutive_failures=np.array([0, 3, 0])),
+    }
+    assert evaluate_feedback(lim, **_feedback()) == []
+    for kind, over in cases.items():
+        faults = evaluate_feedback(lim, **_feedback(**over))
+        assert [f.kind for f in faults] == [kind], kind
+
+
+def test_that_invalid_entries_are_not_judged_except_for_communication() -> None:
+    lim = _limits()
+    faults = evaluate_feedback(lim, **_feedback(valid=np.array([True, False, True]),
+                                                q_present_rad=np.array([0.0, np.nan, 0.0]),
+                                                hardware_error=np.array([0, 0x20, 0])))
+    assert faults == []
+
+
+def test_that_the_limp_ramp_decreases_to_zero() -> None:
+    ramp = limp_pwm_ramp(885, 1.0, 0.01)
+    assert len(ramp) == 100 and ramp[-1] == 0 and np.all(np.diff(ramp) <= 0)
+
+
+def test_that_bad_limits_are_refused() -> None:
+    with pytest.raises(SafetyError):
+        SafetyLimits(np.array([1.0]), np.array([0.0]))

@@ -1,0 +1,71 @@
+"""Preflight, engage and recovery."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.control_table import HardwareError
+from drivers.errors import PreflightError
+from drivers.servo_map import ServoMap
+from drivers.startup import arm_watchdog, engage, preflight, recover
+from hil_tests.conftest import Rig, make_rig
+
+
+def test_that_preflight_writes_only_settings_that_differ_and_then_nothing(rig: Rig) -> None:
+    first = preflight(rig.group)
+    assert {c.register for c in first.changes} == {"return_delay_time", "min_position_limit", "max_position_limit"}
+    assert preflight(rig.group).changes == ()
+    assert rig.mock.servo(13).get("max_position_limit") == rig.servo_map.by_id(13).limit_ticks[1]
+
+
+def test_that_preflight_names_a_missing_servo(rig: Rig) -> None:
+    rig.mock.faults.silence(9)
+    with pytest.raises(PreflightError, match=r"\[9\]"):
+        preflight(rig.group)
+
+
+def test_that_preflight_names_a_wrong_model(servo_map: ServoMap) -> None:
+    r = make_rig(servo_map)
+    r.mock.servo(5).mem[0:2] = (1060).to_bytes(2, "little")
+    with pytest.raises(PreflightError, match="id 5 .* is XL430-W250"):
+        preflight(r.group)
+
+
+def test_that_fast_read_is_not_used_with_old_firmware(servo_map: ServoMap) -> None:
+    r = make_rig(servo_map, firmware_version=44)
+    assert preflight(r.group).fast_read is False
+    assert r.group.read_feedback().valid.all()
+
+
+def test_that_engage_sets_goal_to_present_before_torque_on(servo_map: ServoMap) -> None:
+    q0 = np.clip(np.full(20, 0.3), servo_map.lower_rad, servo_map.upper_rad)
+    r = make_rig(servo_map, initial_rad=q0)
+    preflight(r.group)
+    engage(r.group, watchdog_s=0.1)
+    for s in servo_map.servos:
+        emu = r.mock.servo(s.id)
+        assert emu.torque_on and emu.get("goal_position") == emu.get("present_position")
+        assert emu.get("bus_watchdog") == 5
+
+
+def test_that_recovery_reboots_a_shut_down_servo_and_holds_it(rig: Rig) -> None:
+    preflight(rig.group)
+    engage(rig.group)
+    rig.mock.faults.hardware_error(6, HardwareError.OVERLOAD)
+    rig.clock.sleep(0.01)
+    rig.mock.advance()
+    assert not rig.mock.servo(6).torque_on
+    report = recover(rig.group, [6])
+    assert report.ok and rig.mock.servo(6).torque_on and rig.mock.servo(6).hardware_error == 0
+
+
+def test_that_recovery_gives_up_after_its_attempts_with_a_report(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.mock.faults.silence(6)
+    report = recover(rig.group, [6], attempts=2)
+    assert report.failed == (6,) and report.attempts == 2 and "silent" in report.messages[-1]
+
+
+def test_that_arm_watchdog_converts_seconds_to_20_ms_units(rig: Rig) -> None:
+    assert arm_watchdog(rig.group, 0.25) == 12 and arm_watchdog(rig.group, 10.0) == 127

@@ -1,0 +1,116 @@
+"""robot-rise execute: stream a trajectory file to the servos (real bus or emulator) safely."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from robot_rise.cli._common import Formatter
+
+EPILOG = """examples:
+  robot-rise execute out/demo/getup.json --mock --yes
+  robot-rise execute getup.json --port /dev/ttyUSB0 --speed 0.5 --approach 3 --log run.csv
+exit code: 0 only if the whole trajectory ran without a fault; 1 on a fault; 2 on refused input.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("execute", help="preflight, then stream a trajectory to the servos under the safety layer",
+                       formatter_class=Formatter, epilog=EPILOG)
+    p.add_argument("trajectory", help="trajectory JSON (robot-rise/trajectory@1)")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--port", help="serial device or pyserial URL")
+    g.add_argument("--mock", action="store_true", help="emulated bus (wire timing on), starting at the trajectory's start")
+    p.add_argument("--baud", type=int, help="baud rate [bit/s] (default: from servos.toml)")
+    p.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3)")
+    p.add_argument("--speed", type=float, default=1.0, help="time scale, e.g. 0.5 = half speed (default 1)")
+    p.add_argument("--approach", type=float, metavar="SECONDS",
+                   help="first move slowly from the present posture to the first target (at least SECONDS)")
+    p.add_argument("--rate", type=float, default=100.0, help="control rate [Hz] (default 100)")
+    p.add_argument("--stop", choices=["hold", "limp"], default="hold", help="stop policy on a fault or Ctrl-C")
+    p.add_argument("--allow-unproven", action="store_true",
+                   help="run a trajectory whose report does not say it was proven on this robot model")
+    p.add_argument("--yes", action="store_true", help="do not ask for confirmation")
+    p.add_argument("--log", metavar="FILE", help="CSV log of commanded vs present per cycle")
+    p.set_defaults(func=run)
+
+
+def _proven(report: dict, robot_name: str) -> tuple[bool, str]:
+    # TODO(lead): align with the filter's report keys; accepted: {"proven": true} and, when
+    # present, {"robot": name} matching this robot.
+    if report.get("proven") is not True:
+        return False, "the trajectory's report does not say it was proven (report.proven != true)"
+    if report.get("robot", robot_name) != robot_name:
+        return False, f"proven on robot {report.get('robot')!r}, not {robot_name!r}"
+    return True, ""
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from drivers.executor import Executor, ExecutorConfig
+    from drivers.safety import SafetyLimits, StopPolicy
+    from drivers.servo_map import load_servo_map
+    from drivers.session import connect, mock_url_for
+    from drivers.startup import disarm_watchdog, engage, preflight
+    from robot_rise.model import load_robot
+    from robot_rise.trajectory import read_trajectory
+
+    robot = load_robot(args.robot)
+    traj = read_trajectory(args.trajectory)
+    if traj.robot and traj.robot != robot.name:
+        print(f"error: trajectory is for robot {traj.robot!r}, not {robot.name!r}", file=sys.stderr)
+        return 2
+    ok, why = _proven(dict(traj.report), robot.name)
+    if not ok and not args.allow_unproven:
+        print(f"error: {why}", file=sys.stderr)
+        print("hint: pass --allow-unproven to run it anyway", file=sys.stderr)
+        return 2
+    smap = load_servo_map(robot.directory / "servos.toml")
+    port = args.port
+    if args.mock:
+        port = mock_url_for(smap, initial_rad=dict(zip(traj.joint_names, np.asarray(traj.q)[0])))
+    config = ExecutorConfig(rate_hz=args.rate, speed=args.speed, approach_s=args.approach,
+                            stop_policy=StopPolicy(args.stop),
+                            log_path=Path(args.log) if args.log else None)
+    with connect(smap, port, baud_rate=args.baud) as conn:
+        pre = preflight(conn.group)
+        print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
+              f"{'fast' if pre.fast_read else 'plain'} sync read; {conn.latency.note}")
+        if pre.hardware_errors:
+            print(f"error: hardware errors at start: {pre.hardware_errors}", file=sys.stderr)
+            print("hint: robot-rise servos reboot ID --port PORT", file=sys.stderr)
+            return 2
+        limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+        executor = Executor(conn.group, limits, config)
+        fb = conn.group.read_feedback()
+        executor.prepare(traj.joint_names, traj.t, traj.q, fb.position_rad)  # refuses a far start
+        duration = float(traj.t[-1] - traj.t[0]) / args.speed
+        if not args.yes:
+            answer = input(f"stream {duration:.1f} s of motion to {len(smap)} servos on {conn.url}? [y/N] ")
+            if answer.strip().lower() not in ("y", "yes"):
+                print("aborted; nothing moved")
+                return 2
+        engage(conn.group, watchdog_s=0.1)
+        try:
+            rep = executor.run(traj.joint_names, traj.t, traj.q)
+        finally:
+            disarm_watchdog(conn.group)
+    s = rep.stats
+    print(f"cycles {s.cycles} at {1 / s.period_s:.0f} Hz; jitter p50 {s.jitter_p50_s * 1e3:.3f} ms, "
+          f"p99 {s.jitter_p99_s * 1e3:.3f} ms, max {s.jitter_max_s * 1e3:.3f} ms; "
+          f"deadline misses {s.deadline_misses}; cycle work {s.work_mean_s * 1e3:.2f} ms mean")
+    print(f"max tracking error {rep.max_tracking_error_rad:.4f} rad; safety-clamped cycles {rep.clamped_cycles}")
+    for f in rep.faults:
+        joint = smap.servos[f.index].joint if 0 <= f.index < len(smap) else "bus"
+        print(f"FAULT {f.kind.value} at {joint}: {f.message}")
+    if rep.recovery is not None:
+        for line in rep.recovery.messages:
+            print(f"recovery: {line}")
+    if rep.log_path:
+        print(f"log: {rep.log_path}")
+    print("completed" if rep.completed else f"stopped ({rep.stop_policy.value})")
+    if rep.interrupted:
+        return 130
+    return 0 if rep.completed else 1

@@ -1,0 +1,171 @@
+"""robot-rise servos: scan, status, torque on|off, reboot ID, read-posture (operator tools)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from robot_rise.cli._common import Formatter
+
+EPILOG = """examples:
+  robot-rise servos scan --port /dev/ttyUSB0
+  robot-rise servos status --port /dev/ttyUSB0 --baud 2000000
+  robot-rise servos torque off --port /dev/ttyUSB0
+  robot-rise servos reboot 7 --port /dev/ttyUSB0
+  robot-rise servos read-posture --port /dev/ttyUSB0 --out postures/crouch.json
+  robot-rise servos scan --mock          # against the emulated bus
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("servos", help="scan, inspect and pose the servos on a bus",
+                       formatter_class=Formatter, epilog=EPILOG)
+    ssub = p.add_subparsers(dest="servos_cmd", metavar="ACTION", required=True)
+
+    def common(q: argparse.ArgumentParser) -> None:
+        g = q.add_mutually_exclusive_group(required=True)
+        g.add_argument("--port", help="serial device or pyserial URL (e.g. /dev/ttyUSB0, dxlsim://NAME)")
+        g.add_argument("--mock", action="store_true", help="use an emulated bus built from the servo map")
+        q.add_argument("--baud", type=int, help="baud rate [bit/s] (default: from servos.toml)")
+        q.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3)")
+
+    q = ssub.add_parser("scan", help="ping every ID of the servo map; show model and firmware",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise servos scan --port /dev/ttyUSB0")
+    common(q)
+    q.add_argument("--all", action="store_true", help="ping IDs 0..252, not only the mapped ones")
+    q.set_defaults(func=run_scan)
+    q = ssub.add_parser("status", help="positions, temperatures, voltages and errors of every servo",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise servos status --port /dev/ttyUSB0")
+    common(q)
+    q.set_defaults(func=run_status)
+    q = ssub.add_parser("torque", help="torque on (goal = present first) or off",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise servos torque off --port /dev/ttyUSB0")
+    q.add_argument("state", choices=["on", "off"])
+    common(q)
+    q.set_defaults(func=run_torque)
+    q = ssub.add_parser("reboot", help="reboot one servo (clears a shutdown)",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise servos reboot 7 --port /dev/ttyUSB0")
+    q.add_argument("id", type=int)
+    common(q)
+    q.set_defaults(func=run_reboot)
+    q = ssub.add_parser("read-posture", help="torque off, then save the present joint angles as a posture file",
+                        formatter_class=Formatter,
+                        epilog="example:\n  robot-rise servos read-posture --port /dev/ttyUSB0 --out crouch.json")
+    common(q)
+    q.add_argument("--out", required=True, help="posture JSON to write")
+    q.add_argument("--keep-torque", action="store_true", help="do not turn torque off first")
+    q.set_defaults(func=run_read_posture)
+
+
+def _connect(args: argparse.Namespace):
+    from drivers.servo_map import load_servo_map
+    from drivers.session import connect, mock_url_for
+    from robot_rise.model import load_robot
+
+    robot = load_robot(args.robot)
+    smap = load_servo_map(robot.directory / "servos.toml")
+    port = args.port
+    if args.mock:
+        stand = dict(zip(robot.joint_names, robot.stand_qpos[7:]))
+        port = mock_url_for(smap, initial_rad=stand, wire_timing=False)
+    return robot, smap, connect(smap, port, baud_rate=args.baud)
+
+
+def run_scan(args: argparse.Namespace) -> int:
+    from drivers.control_table import model_for_number
+
+    _, smap, conn = _connect(args)
+    with conn:
+        ids = range(0, 253) if args.all else smap.ids
+        found = conn.bus.scan(ids)
+        print(f"port {conn.url} at {conn.bus.baud_rate} bit/s: {conn.latency.note}")
+        for sid in sorted(set(ids) | set(found)):
+            if sid not in found and sid not in smap.ids:
+                continue
+            expected = smap.by_id(sid) if sid in smap.ids else None
+            r = found.get(sid)
+            if r is None:
+                print(f"  id {sid:3d}  MISSING  (expected {expected.model} for {expected.joint})")  # type: ignore[union-attr]
+                continue
+            t = model_for_number(r.model_number)
+            name = t.model if t else f"model {r.model_number}"
+            flag = "" if expected is None or expected.model == name else f"  WRONG MODEL (map: {expected.model})"
+            joint = expected.joint if expected else "(not in map)"
+            alert = "  ALERT" if r.error & 0x80 else ""
+            print(f"  id {sid:3d}  {name:12s} fw {r.firmware_version:3d}  {joint}{flag}{alert}")
+        missing = [i for i in smap.ids if i not in found]
+        print(f"{len(found)} servo(s) answered; {len(missing)} of the map missing")
+        return 0 if not missing else 1
+
+
+def run_status(args: argparse.Namespace) -> int:
+    from drivers.control_table import HardwareError
+    from drivers.startup import preflight
+
+    _, smap, conn = _connect(args)
+    with conn:
+        preflight(conn.group, configure=False, require_all=False)
+        conn.group.use_indirect = False  # do not touch the servos' indirect map for a status read
+        fb = conn.group.read_feedback()
+        print(f"{'id':>3} {'joint':14s} {'angle[rad]':>10} {'temp[C]':>7} {'volt[V]':>7}  errors")
+        for k, s in enumerate(smap.servos):
+            if not fb.valid[k]:
+                print(f"{s.id:3d} {s.joint:14s} {'--':>10}  no answer")
+                continue
+            err = HardwareError.describe(int(fb.hardware_error[k]))
+            print(f"{s.id:3d} {s.joint:14s} {fb.position_rad[k]:10.3f} {fb.temperature_c[k]:7.0f} "
+                  f"{fb.voltage_v[k]:7.1f}  {err}")
+        return 0 if fb.valid.all() and not fb.hardware_error.any() else 1
+
+
+def run_torque(args: argparse.Namespace) -> int:
+    from drivers.startup import engage, preflight
+
+    _, smap, conn = _connect(args)
+    with conn:
+        if args.state == "off":
+            conn.group.torque(False)
+            print(f"torque off on {len(smap)} servo(s)")
+            return 0
+        preflight(conn.group)
+        engage(conn.group, watchdog_s=None)  # goal = present, then torque on; no watchdog (we exit)
+        print(f"torque on (holding present position) on {len(smap)} servo(s)")
+        return 0
+
+
+def run_reboot(args: argparse.Namespace) -> int:
+    from drivers.startup import recover
+
+    _, smap, conn = _connect(args)
+    with conn:
+        smap.by_id(args.id)  # names valid IDs if unknown
+        report = recover(conn.group, [args.id], attempts=1, torque_on=False)
+        for line in report.messages:
+            print(line)
+        return 0 if report.ok else 1
+
+
+def run_read_posture(args: argparse.Namespace) -> int:
+    from robot_rise.posture import Posture, write_posture
+
+    robot, smap, conn = _connect(args)
+    with conn:
+        if not args.keep_torque:
+            conn.group.torque(False)
+        conn.group.use_indirect = False
+        fb = conn.group.read_feedback()
+        if not fb.valid.all():
+            missing = [s.id for s, ok in zip(smap.servos, fb.valid) if not ok]
+            print(f"error: no position from servo(s) {missing}")
+            return 2
+    joints = {name: float(v) for name, v in zip(robot.joint_names, robot.stand_qpos[7:])}
+    for s, q in zip(smap.servos, fb.position_rad):
+        joints[s.joint] = float(q)
+    posture = Posture(robot.name, np.asarray(robot.stand_qpos[:3]), np.asarray(robot.stand_qpos[3:7]), joints)
+    write_posture(args.out, posture)
+    worst = max(abs(joints[s.joint] - min(max(joints[s.joint], s.min), s.max)) for s in smap.servos)
+    note = "" if worst < 1e-9 else f" (some joints outside the servo map limits by up to {math.degrees(worst):.1f} deg)"
+    print(f"wrote {args.out}: {len(smap)} joint angles read, root pose from the 'stand' keyframe{note}")
+    return 0
