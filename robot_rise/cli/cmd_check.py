@@ -1,0 +1,48 @@
+"""robot-rise check: replay a trajectory file from its start posture; exit 0 only if it stands within limits."""
+
+from __future__ import annotations
+
+import argparse
+
+from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
+from robot_rise.errors import RobotRiseError
+from robot_rise.filter import FilterSettings, prove
+from robot_rise.posture import validate_posture
+from robot_rise.trajectory import read_trajectory
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "check",
+        help="replay a trajectory in MuJoCo through the servo model and judge it",
+        formatter_class=Formatter,
+        description="Replays TRAJ from its start posture through the Dynamixel servo model, then reports the\n"
+        "standing judge's verdict, peak torque against the torque-speed envelope, balance and contacts.\n"
+        "Exit code 0 only if the robot ends standing within the limits.",
+        epilog="example:\n  robot-rise check out/rise.json --scene flat",
+    )
+    p.add_argument("trajectory", metavar="TRAJ", help="trajectory file (robot-rise/trajectory@1)")
+    p.add_argument("--margin", type=float, default=FilterSettings().envelope_margin, help="envelope margin (default: 0.10)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    add_robot_args(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    robot = load_robot_arg(args)
+    tr = read_trajectory(args.trajectory)
+    if tr.robot != robot.name:
+        raise RobotRiseError(f"{args.trajectory} is for robot {tr.robot!r}, not {robot.name!r}", hint="pass --robot DIR")
+    validate_posture(tr.start, robot, where=f"{args.trajectory}: start")
+    if not 0 <= args.margin < 1:
+        raise RobotRiseError("--margin must be in [0, 1)")
+    _, verdict, report = prove(robot, tr, scene=args.scene, settings=FilterSettings(envelope_margin=args.margin))
+    if args.json:
+        print_json(report)
+    else:
+        print(f"{args.trajectory}: {'PROVEN' if report['proven'] else 'NOT PROVEN'} in scene {args.scene}")
+        print(f"  {verdict.summary()}")
+        print(f"  duration {report['duration_s']:.2f} s; ground contacts: {', '.join(report['ground_contacts']) or 'none'}")
+        for line in report["problems"]:
+            print(f"  problem: {line}")
+    return 0 if report["proven"] else 1
