@@ -36,3 +36,58 @@ GLI_SAFE_ZONE_THRESHOLD = 0.3  # max-abs GLI difference for linear interpolation
 STAND_MAX_TILT_RAD = math.radians(15.0)
 STAND_MIN_HEIGHT_FRACTION = 0.90
 STAND_HOLD_S = 2.0
+
+# --- Planner (robot_rise/planning, issue 5) --------------------------------------------------------
+# Ours: the planner distance adds the root position to eq. (1). Rotating the whole body by a full
+# angle a moves points ~0.25 m from the root by 0.25 a; eq. (1) charges w_q * a / 2 = 2.5 a for it,
+# i.e. 10 per metre of body-point travel. A root translation is charged at the same rate.
+PLANNER_ROOT_POSITION_WEIGHT_PER_M = 10.0
+# Ours: edge checking resolution = bound on the travel of ANY point of the robot between two
+# checked postures (robot_rise/planning/motion_validator.py). A geom can cross an obstacle between
+# two checks only by travelling more than its own thickness plus the obstacle's; the thinnest
+# robot geom is the 12 mm sole box and the thinnest shipped obstacle the 30 mm table top/legs, so
+# 42 mm never skips a thin obstacle. 10 mm keeps a 4x margin and bounds an unseen penetration
+# between checks to 5 mm; the final path is re-verified at 2.5 mm (unseen depth <= 1.25 mm).
+EDGE_RESOLUTION_M = 0.01
+VERIFY_RESOLUTION_M = 0.0025
+# Paper 000 section 4.2.1 gives eq. (4)-(5) without values for eps_q and eps_e. Ours, for a
+# 0.51 m robot: eps_e = 0.2 rad (weighted joint norm), eps_q = 0.05 rad (eq. 2 half-angle, i.e. a
+# 5.7 degree body rotation), eps_p = 0.02 m of root travel.
+BLOSSOM_STEP_JOINT_RAD = 0.2
+BLOSSOM_STEP_ORIENTATION_RAD = 0.05
+BLOSSOM_STEP_POSITION_M = 0.02
+
+# --- Time parameterisation (robot_rise/planning/timing.py) ----------------------------------------
+# Paper 000 section 4.3 uses a constant speed; we use per-joint trapezoidal limits from the servo.
+# Ours: plan at half the no-load speed, where the torque-speed envelope still leaves half of the
+# stall torque (robot_rise/servo.py torque_limits), and at a joint acceleration that an XM430 with
+# an OP3 link (~0.01-0.02 kg m^2 reflected) reaches with ~10 % of its stall torque.
+JOINT_SPEED_FRACTION_OF_NO_LOAD = 0.5
+JOINT_ACCEL_LIMIT_RAD_S2 = 8.0
+# Ours: the planned root (moved by contacts, not by a motor) is kept slow.
+ROOT_SPEED_LIMIT_M_S = 0.15
+ROOT_ANGULAR_SPEED_LIMIT_RAD_S = 1.0
+ROOT_ACCEL_LIMIT_M_S2 = 0.5
+ROOT_ANGULAR_ACCEL_LIMIT_RAD_S2 = 3.0
+
+# --- Energy-driven planner (robot_rise/planning/energy.py, issue 7; paper 004) ---------------------
+ENERGY_FALLOFF_D = 3  # fall-off exponent d of eq. (1); paper: d between 2 and 5 (004 sections 7.2, 8)
+ENERGY_EXTERNAL_EXPONENT = 2  # exponent of the external term, eq. (2)
+ENERGY_CONSTRAINT_GAMMA = 0.01  # gamma of eq. (10)-(11), "0.01 for all our experiments" (004 section 6.1)
+ENERGY_CONSTRAINT_OMEGA = -0.01  # omega of eq. (11), "-0.01 in all our experiments" (004 section 6.1)
+ENERGY_LOCAL_MINIMUM_PATIENCE = 50  # iterations in one energy window = local minimum (004 section 8)
+# Ours: a lying robot touches the ground, so surface distances are softened below 5 mm (a tenth of
+# the thinnest link diameter of ~32 mm) to keep the energy finite; the checker decides legality.
+ENERGY_SOFTENING_M = 0.005
+# Ours: the step alpha of eq. (4)-(5) in rad; 0.03 rad moves a 0.25 m lever by 7.5 mm, under the
+# thinnest link (12 mm sole), so one step cannot jump through a link.
+ENERGY_STEP_RAD = 0.03
+# Ours: a projected step (eq. 5) adds this fraction of alpha of pure descent, so the energy falls.
+ENERGY_DESCENT_BETA = 0.3
+# Ours: "a small energy window" of 004 section 8, as a fraction of the window's top energy.
+ENERGY_WINDOW_FRACTION = 0.02
+# Ours: root translation in the planner's tangent space: 0.1 m of root travel counts as 1 rad.
+ROOT_TRANSLATION_SCALE_M = 0.1
+# Ours: the energy planner's output path is verified so that no robot point moves more than this
+# between two checked postures (the other planner's EDGE_RESOLUTION_M reasoning, 004 has none).
+ENERGY_VERIFY_RESOLUTION_M = 0.005

@@ -40,6 +40,8 @@ __all__ = [
     "torque_limits",
     "envelope_ratio",
     "position_mode_torque",
+    "ServoArrays",
+    "servo_arrays",
 ]
 
 TICKS_PER_REV = 4096  # position resolution of X-series / MX(2.0) servos
@@ -236,3 +238,48 @@ def position_mode_torque(
     """
     duty = np.clip(kp_nm_per_rad * (goal_rad - position_rad) / stall_torque_nm, -1.0, 1.0)
     return stall_torque_nm * (duty - velocity_rad_s / no_load_speed_rad_s)
+
+
+@dataclass(frozen=True)
+class ServoArrays:
+    """Per-joint servo numbers at one supply voltage, as arrays (vectorised envelope checks).
+
+    Attributes:
+        stall_torque_nm: stall torque per joint at the voltage [N m], shape (n,).
+        no_load_speed_rad_s: no-load speed per joint at the voltage [rad/s], shape (n,).
+        kp_nm_per_rad: position-loop stiffness per joint [N m / rad], shape (n,).
+        back_emf_damping_nm_s: tau_stall / w_noload per joint [N m s / rad], shape (n,).
+    """
+
+    stall_torque_nm: np.ndarray
+    no_load_speed_rad_s: np.ndarray
+    kp_nm_per_rad: np.ndarray
+    back_emf_damping_nm_s: np.ndarray
+
+    def motor_torque(self, actuator_force_nm: np.ndarray, velocity_rad_s: np.ndarray) -> np.ndarray:
+        """Motor torque [N m] from the position-loop output and the joint speed.
+
+        The MuJoCo position actuator gives ``tau_stall * clip(u)``; the back-EMF (modelled as joint
+        damping) subtracts ``tau_stall * w / w_noload``. Shapes (..., n).
+        """
+        return np.asarray(actuator_force_nm) - self.back_emf_damping_nm_s * np.asarray(velocity_rad_s)
+
+    def ratio(self, motor_torque_nm: np.ndarray, velocity_rad_s: np.ndarray) -> np.ndarray:
+        """Torque / envelope ratio per joint (see :func:`envelope_ratio`), shape (..., n)."""
+        return envelope_ratio(motor_torque_nm, velocity_rad_s, self.stall_torque_nm, self.no_load_speed_rad_s)
+
+
+def servo_arrays(specs: tuple[ServoSpec, ...] | list[ServoSpec], voltage_v: float) -> ServoArrays:
+    """Stack the per-joint servo numbers at ``voltage_v`` [V] into :class:`ServoArrays`."""
+
+    def ro(values: list[float]) -> np.ndarray:
+        a = np.array(values, dtype=float)
+        a.setflags(write=False)
+        return a
+
+    return ServoArrays(
+        stall_torque_nm=ro([s.stall_torque_at(voltage_v) for s in specs]),
+        no_load_speed_rad_s=ro([s.no_load_speed_at(voltage_v) for s in specs]),
+        kp_nm_per_rad=ro([s.position_gain_nm_per_rad(voltage_v) for s in specs]),
+        back_emf_damping_nm_s=ro([s.back_emf_damping_nm_s for s in specs]),
+    )
