@@ -64,6 +64,12 @@ class FilterSettings:
         envelope_margin: torque may use at most (1 - margin) of the torque-speed envelope
             (issue 6 default 10 %).
         min_zmp_margin_m: the ZMP must stay this far inside the support polygon while on feet [m].
+        balance_tolerance_m: ZMP excursions shallower than this are estimation noise (point-mass
+            ZMP, support polygon from discrete contact points) [m].
+        balance_hold_s: a ZMP excursion counts when it lasts this long [s] (impacts at touchdown
+            are instantaneous and not a loss of balance).
+        soft_iterations: extra iterations spent on balance/divergence violations once the motion
+            is proven (stands, within the envelope); the best proven motion is kept.
         divergence_rad: tracking error counted as divergence [rad] (default 1.5 x the servo's
             saturation error: beyond saturation the servo pushes with all it has).
         divergence_hold_s: how long the error must last to count [s].
@@ -77,6 +83,9 @@ class FilterSettings:
 
     envelope_margin: float = 0.10
     min_zmp_margin_m: float = 0.0
+    balance_tolerance_m: float = 0.005
+    balance_hold_s: float = 0.1
+    soft_iterations: int = 2
     divergence_rad: float = 0.33
     divergence_hold_s: float = 0.4
     slow_factor: float = 1.6
@@ -192,8 +201,8 @@ def find_violations(rec: Recording, settings: FilterSettings, *, saturation_rad:
         joints = tuple(rec.joint_names[k] for k in np.flatnonzero(over[i : j + 1].any(axis=0)))
         out.append(Violation("torque", float(t[i]), float(t[j]), joints, float(rec.envelope_ratio[i : j + 1].max())))
     on = rec.on_feet & np.isfinite(rec.zmp_margin_m)
-    bad = on & (np.nan_to_num(rec.zmp_margin_m, nan=1.0) < settings.min_zmp_margin_m)
-    for i, j in _windows(bad, t):
+    bad = on & (np.nan_to_num(rec.zmp_margin_m, nan=1.0) < settings.min_zmp_margin_m - settings.balance_tolerance_m)
+    for i, j in _windows(bad, t, settings.balance_hold_s):
         out.append(Violation("balance", float(t[i]), float(t[j]), (), float(np.nanmin(rec.zmp_margin_m[i : j + 1]))))
     err = np.abs(rec.q - rec.goal)
     div = err > max(settings.divergence_rad, 1.5 * saturation_rad)
@@ -294,7 +303,9 @@ def dynamics_filter(
     saturation = min(servo_spec(s.model).saturation_error_rad() for s in robot.servos)
     current = commanded
     history: list[FilterIteration] = []
-    rec = verdict = report = None
+    best: tuple[Trajectory, Recording, StandVerdict, dict[str, Any]] | None = None  # best proven so far
+    last: tuple[Trajectory, Recording, StandVerdict, dict[str, Any]] | None = None
+    soft = 0
     for it in range(1, settings.max_iterations + 1):
         rec, verdict, report = prove(robot, current, scene=scene, settings=settings, player=player, start=start)
         violations = [v for v in find_violations(rec, settings, saturation_rad=saturation) if v.t_start_s <= current.duration_s]
@@ -304,8 +315,15 @@ def dynamics_filter(
         log.info("filter iteration %d: %s; %d violations", it, verdict.summary(), len(violations))
         if progress is not None:
             progress(it, settings.max_iterations)
-        if report["proven"] and not violations:
-            break
+        last = (current, rec, verdict, report)
+        if report["proven"]:
+            if best is None or len(violations) < best[3].get("_n_violations", 1 << 30):
+                best = (current, rec, verdict, {**report, "_n_violations": len(violations)})
+            if not violations:
+                break
+            soft += 1
+            if soft > settings.soft_iterations:
+                break
         windows = [
             (max(v.t_start_s - settings.window_pad_s, protect_until_s), min(v.t_end_s + settings.window_pad_s, current.duration_s))
             for v in violations
@@ -320,7 +338,9 @@ def dynamics_filter(
         if stretched.duration_s > settings.max_duration_s:
             break
         current = stretched
-    assert rec is not None and verdict is not None and report is not None
+    assert last is not None
+    current, rec, verdict, report = best if best is not None else last
+    report = {k: v for k, v in report.items() if not k.startswith("_")}
     ok = bool(report["proven"])
     reason = "" if ok else "; ".join(report["problems"]) + (f" (after {len(history)} filter iterations)")
     full_report = {

@@ -1,0 +1,74 @@
+"""robot-rise rise: from a lying posture to a proven get-up trajectory."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
+from robot_rise.filter import FilterSettings
+from robot_rise.library import load_library
+from robot_rise.posture import read_posture
+from robot_rise.rise import DEFAULT_CANDIDATES, rise
+from robot_rise.trajectory import write_trajectory
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "rise",
+        help="plan, filter and prove a get-up from a lying posture",
+        formatter_class=Formatter,
+        description="Selects the nearest library motion (paper 000 eq. 1), plans a collision-free path to its\n"
+        "connecting posture (RRT-blossom), joins the motion, filters it through the MuJoCo servo model\n"
+        "until it stands within the torque-speed envelope, and writes the commanded targets.\n"
+        "Exit code 0 only if the standing judge passes; 1 if no candidate could be proven (the file,\n"
+        "if written, then says why in its report); 2 on bad input.",
+        epilog="example:\n  robot-rise sample --kind prone --n 1 --seed 4 --out lying/\n"
+        "  robot-rise rise --from lying/prone_4_000.json --out rise.json\n  robot-rise check rise.json",
+    )
+    p.add_argument("--from", dest="start", required=True, metavar="POSTURE", help="lying posture file")
+    p.add_argument("--key", metavar="POSTURE", help="key posture to pass through")
+    p.add_argument("--out", required=True, metavar="TRAJ", help="output trajectory file")
+    p.add_argument("--seed", type=int, default=0, help="planner seed (default: 0)")
+    p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS", help="planning budget per candidate (default: 30)")
+    p.add_argument("--candidates", type=int, default=DEFAULT_CANDIDATES, help=f"library motions to try (default: {DEFAULT_CANDIDATES})")
+    p.add_argument("--margin", type=float, default=FilterSettings().envelope_margin, help="torque envelope margin (default: 0.10)")
+    p.add_argument("--library", metavar="DIR", help="motion library directory (default: the robot's shipped one)")
+    p.add_argument("--write-unproven", action="store_true", help="write the best unproven attempt too (exit code stays 1)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_robot_args(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    robot = load_robot_arg(args)
+    start = read_posture(args.start, robot)
+    key = read_posture(args.key, robot) if args.key else None
+    library = load_library(args.library, robot_name=robot.name) if args.library else None
+    tty = sys.stderr.isatty()
+
+    def progress(stage: str) -> None:
+        if tty:
+            print(f"  {stage}...", file=sys.stderr)
+
+    result = rise(
+        robot, start, scene=args.scene, key=key, seed=args.seed, budget_s=args.budget, library=library,
+        candidates=args.candidates, settings=FilterSettings(envelope_margin=args.margin), progress=progress,
+    )
+    wrote = False
+    if result.trajectory is not None and (result.ok or args.write_unproven):
+        write_trajectory(args.out, result.trajectory)
+        wrote = True
+    rep = result.trajectory.report if result.trajectory is not None else {}
+    if args.json:
+        print_json({"proven": result.ok, "out": args.out if wrote else None, "reason": result.reason,
+                    "attempts": [a.describe() for a in result.attempts], "duration_s": rep.get("duration_s"),
+                    "peak_torque_ratio": rep.get("peak_torque_ratio"), "motion": rep.get("motion")})
+    elif result.ok:
+        print(f"PROVEN: {args.out} ({rep['motion']}, {rep['duration_s']:.2f} s, peak torque {rep['peak_torque_ratio']:.2f} of the envelope,"
+              f" {rep['filter_iterations']} filter iterations)")
+        print(f"  {rep['judge']}")
+    else:
+        print(f"NOT PROVEN: {result.reason}")
+        print("  nothing written" if not wrote else f"  best unproven attempt written to {args.out}")
+    return 0 if result.ok else 1

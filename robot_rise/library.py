@@ -1,0 +1,354 @@
+"""The motion library and connecting-posture selection (paper 000 section 4.1, section 4.3).
+
+A library directory holds ``index.json`` (format ``robot-rise/motion-library@1``) naming, per
+motion, a trajectory file (``robot-rise/trajectory@1`` with the simulated ``root`` pose per row), its
+start posture file and ``connect_until_s``, the end of the lying-to-sitting/squatting phase.
+
+Connecting-posture selection: every row of every motion's lying-to-sitting phase is a candidate
+frame. For an arbitrary lying posture we want the frame nearest by the posture metric of paper 000
+eq. (1)-(3) (root orientation after yaw alignment, weighted joint angles). The paper clusters the
+frames with K-means into an N-ary tree (N = 50 for its motion-capture database) and descends it.
+Our tree is exact: the metric is a true metric (a sum of the bi-invariant, yaw-quotiented SO(3)
+distance and a weighted Euclidean one), so each node keeps a centre frame and a covering radius
+and a best-first search prunes a node when d(query, centre) - radius cannot beat the best frame
+found so far (triangle inequality). The answer is therefore always the brute-force answer; the
+tree only saves distance evaluations.
+
+Branching factor (ours): N = 8 with leaves of at most 24 frames. The paper's N = 50 suits a
+database of tens of thousands of frames; ours holds a few thousand, and a shallow tree with small
+leaves keeps the number of nodes visited (and Python overhead per node) low.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.cluster.vq import kmeans2
+
+from robot_rise.errors import FormatError
+from robot_rise.model import Robot
+from robot_rise.paths import configs_dir
+from robot_rise.posture import Posture, quat_multiply, read_posture
+from robot_rise.trajectory import Trajectory, read_trajectory
+
+__all__ = [
+    "LIBRARY_FORMAT",
+    "LYING_KINDS",
+    "Motion",
+    "MotionLibrary",
+    "load_library",
+    "default_library_dir",
+    "FrameIndex",
+    "Connection",
+    "KMeansTree",
+    "TREE_BRANCHING",
+    "TREE_LEAF_SIZE",
+]
+
+log = logging.getLogger(__name__)
+
+LIBRARY_FORMAT = "robot-rise/motion-library@1"
+LYING_KINDS = ("supine", "prone", "left", "right")
+TREE_BRANCHING = 8  # N of the N-ary K-means tree (paper 000 section 4.1 uses 50; see module docstring)
+TREE_LEAF_SIZE = 24  # a node with at most this many frames is a leaf (ours)
+_QUAT_Z = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def default_library_dir(robot_name: str = "op3") -> Path:
+    """The shipped library of a robot: ``configs/motions/<robot>``."""
+    return configs_dir() / "motions" / robot_name
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One library motion.
+
+    Attributes:
+        name: motion name (file stem).
+        lying: ``supine``, ``prone``, ``left`` or ``right``.
+        strategy: one line for people.
+        trajectory: the joint-target trajectory (with the simulated root pose per row).
+        start: the settled lying posture it starts from.
+        connect_until_s: end of the lying-to-sitting/squatting phase [s].
+    """
+
+    name: str
+    lying: str
+    strategy: str
+    trajectory: Trajectory
+    start: Posture
+    connect_until_s: float
+
+    @property
+    def duration_s(self) -> float:
+        return self.trajectory.duration_s
+
+
+@dataclass(frozen=True)
+class MotionLibrary:
+    """The motions of one robot, in index order."""
+
+    robot: str
+    directory: Path
+    motions: tuple[Motion, ...]
+
+    def names(self) -> list[str]:
+        return [m.name for m in self.motions]
+
+    def get(self, name: str) -> Motion:
+        """The motion called ``name``; FormatError listing the names otherwise."""
+        for m in self.motions:
+            if m.name == name:
+                return m
+        raise FormatError(f"no motion {name!r} in {self.directory}; motions: {', '.join(self.names())}")
+
+    def frame_index(self, robot: Robot) -> FrameIndex:
+        """Index the lying-to-sitting phase of every motion (see :class:`FrameIndex`)."""
+        return FrameIndex.build(self, robot)
+
+
+def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name: str = "op3") -> MotionLibrary:
+    """Read a library directory (default: the shipped one) and validate every file it names.
+
+    Raises:
+        FormatError: the index or a motion file is missing or malformed (the message names it).
+    """
+    root = Path(directory) if directory is not None else default_library_dir(robot_name)
+    path = root / "index.json"
+    try:
+        obj = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FormatError(f"{path}: no motion library index", hint="regenerate with: python -m robot_rise.library_authoring") from None
+    except json.JSONDecodeError as e:
+        raise FormatError(f"{path}: not valid JSON ({e})") from None
+    if not isinstance(obj, dict) or obj.get("format") != LIBRARY_FORMAT:
+        got = obj.get("format") if isinstance(obj, dict) else None
+        raise FormatError(f"{path}: format is {got!r}, expected {LIBRARY_FORMAT!r}")
+    rows = obj.get("motions")
+    if not isinstance(rows, list) or not rows:
+        raise FormatError(f"{path}: 'motions' must be a non-empty list")
+    motions = []
+    seen: set[str] = set()
+    for i, row in enumerate(rows):
+        where = f"{path}: motions[{i}]"
+        if not isinstance(row, dict):
+            raise FormatError(f"{where}: expected an object")
+        for key in ("name", "lying", "trajectory", "start", "connect_until_s"):
+            if key not in row:
+                raise FormatError(f"{where}: missing field {key!r}")
+        name = str(row["name"])
+        if name in seen:
+            raise FormatError(f"{where}: motion name {name!r} appears twice")
+        seen.add(name)
+        if row["lying"] not in LYING_KINDS:
+            raise FormatError(f"{where}: lying is {row['lying']!r}; expected one of {', '.join(LYING_KINDS)}")
+        tr = read_trajectory(root / str(row["trajectory"]))
+        start = read_posture(root / str(row["start"]))
+        if tr.root is None:
+            raise FormatError(f"{root / str(row['trajectory'])}: library motions need the simulated 'root' pose per row")
+        cut = float(row["connect_until_s"])
+        if not 0.0 < cut <= tr.duration_s:
+            raise FormatError(f"{where}: connect_until_s {cut} must lie in (0, {tr.duration_s}]")
+        motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut))
+    return MotionLibrary(str(obj.get("robot", robot_name)), root, tuple(motions))
+
+
+@dataclass(frozen=True)
+class Connection:
+    """The connecting posture chosen for a query.
+
+    Attributes:
+        motion: motion name.
+        frame: row index in the motion's trajectory.
+        time_s: time of that row [s].
+        distance: posture distance of paper 000 eq. (1) to the query.
+        evaluations: number of frame distances evaluated to find it.
+    """
+
+    motion: str
+    frame: int
+    time_s: float
+    distance: float
+    evaluations: int
+
+
+@dataclass(frozen=True)
+class FrameIndex:
+    """Candidate frames in the metric's own coordinates (read-only arrays).
+
+    Attributes:
+        motion_names: motion per motion id.
+        motion_id, frame, time_s: per frame, shape (M,).
+        quat: root quaternions (w, x, y, z), shape (M, 4).
+        quat_z: the same turned by pi about world z (k * q), shape (M, 4) (yaw alignment).
+        joints_w: joint angles times sqrt(w^i) of eq. (3), shape (M, n).
+        root_weight: w_q of eq. (1).
+        sqrt_w: sqrt of the joint weights, shape (n,).
+    """
+
+    motion_names: tuple[str, ...]
+    motion_id: np.ndarray
+    frame: np.ndarray
+    time_s: np.ndarray
+    quat: np.ndarray
+    quat_z: np.ndarray
+    joints_w: np.ndarray
+    root_weight: float
+    sqrt_w: np.ndarray
+
+    @classmethod
+    def build(cls, library: MotionLibrary, robot: Robot) -> FrameIndex:
+        mids, frames, times, quats, joints = [], [], [], [], []
+        for k, m in enumerate(library.motions):
+            tr = m.trajectory
+            cols = [tr.joint_names.index(j) for j in robot.joint_names]
+            rows = np.flatnonzero(tr.t <= m.connect_until_s + 1e-9)
+            if tr.root is None:
+                raise FormatError(f"motion {m.name}: no 'root' pose per row to index")
+            mids.append(np.full(rows.size, k))
+            frames.append(rows)
+            times.append(tr.t[rows])
+            quats.append(tr.root[rows, 3:])
+            joints.append(tr.q[rows][:, cols])
+        q = np.concatenate(quats)
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+        sqrt_w = np.sqrt(np.asarray(robot.metric_weights, dtype=float))
+        arrays = dict(
+            motion_id=np.concatenate(mids),
+            frame=np.concatenate(frames),
+            time_s=np.concatenate(times),
+            quat=q,
+            quat_z=quat_multiply(_QUAT_Z, q),
+            joints_w=np.concatenate(joints) * sqrt_w,
+        )
+        for a in arrays.values():
+            a.setflags(write=False)
+        return cls(tuple(library.names()), root_weight=robot.root_orientation_weight, sqrt_w=sqrt_w, **arrays)
+
+    @property
+    def size(self) -> int:
+        return int(self.frame.size)
+
+    def query_features(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(unit quaternion shape (4,), weighted joints shape (n,)) of a query posture."""
+        q = np.asarray(quat_wxyz, dtype=float)
+        return q / np.linalg.norm(q), np.asarray(joints, dtype=float) * self.sqrt_w
+
+    def distances(self, q: np.ndarray, jw: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Paper 000 eq. (1) from a query (features) to frames ``rows``, shape (len(rows),).
+
+        Same value as :class:`robot_rise.posture.PostureDistance`, with the yaw alignment and the
+        weights precomputed per frame.
+        """
+        a = self.quat[rows] @ q
+        b = self.quat_z[rows] @ q
+        dq = np.arccos(np.minimum(np.sqrt(a * a + b * b), 1.0))
+        dv = np.sqrt(np.sum((self.joints_w[rows] - jw) ** 2, axis=1))
+        return self.root_weight * dq + dv
+
+    def pairwise(self, i: int, rows: np.ndarray) -> np.ndarray:
+        """Distances from frame ``i`` to frames ``rows``."""
+        return self.distances(self.quat[i], self.joints_w[i], rows)
+
+    def _connection(self, i: int, d: float, evaluations: int) -> Connection:
+        return Connection(self.motion_names[self.motion_id[i]], int(self.frame[i]), float(self.time_s[i]), float(d), evaluations)
+
+    def brute_force(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> Connection:
+        """Nearest frame by evaluating every frame."""
+        q, jw = self.query_features(quat_wxyz, joints)
+        d = self.distances(q, jw)
+        i = int(np.argmin(d))
+        return self._connection(i, float(d[i]), self.size)
+
+    def features(self) -> np.ndarray:
+        """Euclidean features for K-means: weighted joints and w_q times the body-frame up vector, shape (M, n + 3).
+
+        The up vector seen from the body (third row of R) ignores yaw, like the metric does.
+        """
+        w, x, y, z = self.quat.T
+        up = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
+        return np.concatenate([self.joints_w, self.root_weight * 0.5 * up], axis=1)
+
+
+@dataclass(frozen=True)
+class _Node:
+    centre: int  # frame index of the node's centre (a member frame)
+    radius: float  # max metric distance from the centre to any member
+    members: np.ndarray  # frame indices (leaves only; empty for inner nodes)
+    children: tuple[_Node, ...]
+
+
+class KMeansTree:
+    """N-ary K-means tree over a :class:`FrameIndex` with exact best-first search."""
+
+    def __init__(self, index: FrameIndex, *, branching: int = TREE_BRANCHING, leaf_size: int = TREE_LEAF_SIZE, seed: int = 0) -> None:
+        if branching < 2:
+            raise ValueError("branching must be >= 2")
+        self.index = index
+        self.branching = branching
+        self.leaf_size = leaf_size
+        self._rng = np.random.default_rng(seed)
+        self._features = index.features()
+        t0 = time.perf_counter()
+        self.root = self._build(np.arange(index.size))
+        self.build_time_s = time.perf_counter() - t0
+        log.debug("K-means tree over %d frames built in %.3f s", index.size, self.build_time_s)
+
+    def _make_node(self, rows: np.ndarray, children: tuple[_Node, ...], members: np.ndarray) -> _Node:
+        f = self._features[rows]
+        centre = int(rows[int(np.argmin(np.sum((f - f.mean(axis=0)) ** 2, axis=1)))])
+        radius = float(self.index.pairwise(centre, rows).max())
+        return _Node(centre, radius, members, children)
+
+    def _build(self, rows: np.ndarray) -> _Node:
+        if rows.size <= self.leaf_size:
+            return self._make_node(rows, (), rows)
+        k = min(self.branching, rows.size)
+        seed = int(self._rng.integers(2**31 - 1))
+        _, labels = kmeans2(self._features[rows], k, minit="++", seed=seed)
+        groups = [rows[labels == g] for g in range(k) if np.any(labels == g)]
+        if len(groups) < 2:  # identical frames: split arbitrarily
+            groups = list(np.array_split(rows, 2))
+        return self._make_node(rows, tuple(self._build(g) for g in groups), np.empty(0, dtype=int))
+
+    def query(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> Connection:
+        """Nearest frame (exact: equal to :meth:`FrameIndex.brute_force` up to ties)."""
+        idx = self.index
+        q, jw = idx.query_features(quat_wxyz, joints)
+        best_d, best_i, evals = np.inf, -1, 0
+        stack: list[tuple[float, _Node]] = [(0.0, self.root)]
+        while stack:
+            bound, node = stack.pop()
+            if bound >= best_d:
+                continue
+            if node.members.size:
+                d = idx.distances(q, jw, node.members)
+                evals += node.members.size
+                j = int(np.argmin(d))
+                if d[j] < best_d:
+                    best_d, best_i = float(d[j]), int(node.members[j])
+                continue
+            centres = np.array([c.centre for c in node.children])
+            dc = idx.distances(q, jw, centres)
+            evals += centres.size
+            j = int(np.argmin(dc))
+            if dc[j] < best_d:
+                best_d, best_i = float(dc[j]), int(centres[j])
+            lower = dc - np.array([c.radius for c in node.children])
+            # push farthest first so the nearest child is searched next (best-first, depth-first)
+            for c in np.argsort(-lower):
+                if lower[c] < best_d:
+                    stack.append((float(lower[c]), node.children[c]))
+        return idx._connection(best_i, best_d, evals)
+
+    def depth(self) -> int:
+        def _d(n: _Node) -> int:
+            return 1 + max((_d(c) for c in n.children), default=0)
+
+        return _d(self.root)

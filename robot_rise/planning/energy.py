@@ -1,0 +1,794 @@
+"""Energy-driven planning between two distant postures (paper 004, Wang, Ho & Komura 2015).
+
+Pieces, each from the paper section named beside it:
+
+- ``RepulsiveEnergy``: E = E_int + E_ext (section 4.1, eq. 1-2) over the robot's links as
+  capsules (robot_rise.planning.capsules), with its analytic gradient with respect to the posture
+  in MuJoCo's tangent space (root linear velocity in the world, root angular velocity in the root
+  frame, then joint rates; shape (nv,)), from body Jacobians (``mj_jacBody``).
+- ``plan_energy`` / ``energy_interpolate``: energy-descent bidirectional interpolation
+  (section 5.1, Algorithm 1) with the safe zone of the Gauss linking integral (section 5.2.2,
+  eq. 7-8) and constrained planning by null-space projection (section 6.1, Algorithm 2,
+  eq. 9-13: joint limits and positional constraints such as a hand kept on the ground).
+- ``EnergyWindow``: the local-minimum detector of section 8.
+
+Adaptations for a 0.51 m robot (marked "ours" in robot_rise/constants.py):
+
+- Surface distances (segment distance minus radii) are softened below ``softening_m`` so that
+  touching links (a lying robot touches the ground everywhere) have a large but finite energy:
+  h(delta) = delta + eps for delta >= 0, eps * exp(delta / eps) below (C1, positive, increasing);
+  each pair contributes h^-d. The validity checker, not the energy, decides what is legal: every
+  accepted step is checked, and the final path is verified at a fixed travel resolution.
+- The ground is always there, so the safe-zone rule "linear step if E_gli < 0.3 and O is empty"
+  becomes "linear step if E_gli < 0.3 and the linear step is legal".
+- A projected step (I - g g^T) D keeps the energy level only to first order; we add a small
+  descent component -beta g so the energy of the moving end really decreases (as Algorithm 1's
+  expansion toward the canonical postures of section 5.1 intends).
+- Root translation enters the tangent space scaled: ``ROOT_TRANSLATION_SCALE_M`` metres count as
+  one radian, so one step length alpha [rad] bounds both.
+
+Thread safety: an energy object owns one MjData; make one per thread.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from robot_rise.constants import (
+    ENERGY_CONSTRAINT_GAMMA,
+    ENERGY_CONSTRAINT_OMEGA,
+    ENERGY_DESCENT_BETA,
+    ENERGY_EXTERNAL_EXPONENT,
+    ENERGY_FALLOFF_D,
+    ENERGY_LOCAL_MINIMUM_PATIENCE,
+    ENERGY_SOFTENING_M,
+    ENERGY_STEP_RAD,
+    ENERGY_VERIFY_RESOLUTION_M,
+    ENERGY_WINDOW_FRACTION,
+    GLI_SAFE_ZONE_THRESHOLD,
+    ROOT_TRANSLATION_SCALE_M,
+)
+from robot_rise.planning.capsules import (
+    CapsuleSet,
+    HalfSpace,
+    box_corners,
+    ground_halfspaces,
+    non_adjacent_pairs,
+    robot_capsules,
+    segment_closest_points,
+    world_capsules,
+)
+from robot_rise.planning.gli import GliMatrix, gli_difference
+from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
+from robot_rise.posture import Posture, posture_from_qpos
+from robot_rise.validity import ValidityChecker
+
+__all__ = [
+    "EnergyParams",
+    "EnergyValue",
+    "RepulsiveEnergy",
+    "PositionalConstraint",
+    "EnergyWindow",
+    "InterpolationOutcome",
+    "energy_interpolate",
+    "plan_energy",
+    "EnergyPlanner",
+    "FALLOFF_RETRY_SCHEDULE",
+    "tangent_difference",
+    "tangent_step",
+    "segment_is_valid",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class EnergyParams:
+    """Parameters of the energy and of Algorithms 1-2 (defaults in robot_rise/constants.py).
+
+    Attributes:
+        falloff_d: fall-off exponent d of eq. (1) (paper: 2..5).
+        external_exponent: exponent of eq. (2) (paper: 2).
+        softening_m: softening length of the surface distance [m] (ours).
+        external_weight: weight of E_ext against E_int (paper: 1).
+        step_rad: step length alpha of eq. (4)-(5) in the scaled tangent space [rad].
+        descent_beta: extra descent on a projected step, fraction of alpha (ours).
+        gli_threshold: safe-zone threshold of eq. (8) (paper: 0.3).
+        use_safe_zone: take linear steps inside the safe zone (section 5.2.2).
+        patience: local-minimum iterations of section 8 (paper: 50).
+        window_fraction: height of the energy window, fraction of its top energy (ours).
+        gamma, omega: eq. (10)-(11) constants (paper: 0.01, -0.01).
+        max_iterations: hard cap on iterations.
+        verify_resolution_m: travel bound between checked postures of the output path [m].
+        root_translation_scale_m: metres of root travel that count as one radian (ours).
+        move_root: let the energy move the root (position and orientation); if False, the root
+            follows the straight interpolation only and the energy acts on the joints.
+    """
+
+    falloff_d: int = ENERGY_FALLOFF_D
+    external_exponent: int = ENERGY_EXTERNAL_EXPONENT
+    softening_m: float = ENERGY_SOFTENING_M
+    external_weight: float = 1.0
+    step_rad: float = ENERGY_STEP_RAD
+    descent_beta: float = ENERGY_DESCENT_BETA
+    gli_threshold: float = GLI_SAFE_ZONE_THRESHOLD
+    use_safe_zone: bool = True
+    patience: int = ENERGY_LOCAL_MINIMUM_PATIENCE
+    window_fraction: float = ENERGY_WINDOW_FRACTION
+    gamma: float = ENERGY_CONSTRAINT_GAMMA
+    omega: float = ENERGY_CONSTRAINT_OMEGA
+    max_iterations: int = 4000
+    verify_resolution_m: float = ENERGY_VERIFY_RESOLUTION_M
+    root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M
+    move_root: bool = True
+
+    def __post_init__(self) -> None:
+        if self.falloff_d < 1:
+            raise ValueError(f"falloff_d must be >= 1 (paper 004 section 4.2), got {self.falloff_d}")
+        if self.softening_m <= 0 or self.step_rad <= 0 or self.verify_resolution_m <= 0:
+            raise ValueError("softening_m, step_rad and verify_resolution_m must be positive")
+
+
+@dataclass(frozen=True)
+class EnergyValue:
+    """The energy of one posture.
+
+    Attributes:
+        total: E = E_int + E_ext (dimensionless, distances in metres).
+        internal, external: the two terms of eq. (1)-(2).
+        gradient: dE/dv in MuJoCo's tangent space, shape (nv,), or None if not asked.
+        min_self_m: smallest capsule surface distance between non-neighbouring links [m].
+        min_external_m: smallest capsule surface distance to ground/obstacles [m].
+    """
+
+    total: float
+    internal: float
+    external: float
+    gradient: np.ndarray | None
+    min_self_m: float
+    min_external_m: float
+
+
+def _soft(delta: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """h(delta) and h'(delta): delta + eps above 0, eps exp(delta/eps) below (C1, > 0)."""
+    pos = delta >= 0.0
+    ex = eps * np.exp(np.minimum(delta, 0.0) / eps)
+    h = np.where(pos, delta + eps, ex)
+    dh = np.where(pos, 1.0, ex / eps)
+    return h, dh
+
+
+class RepulsiveEnergy:
+    """Repulsive energy of paper 004 eq. (1)-(2) for one robot in one scene, with its gradient.
+
+    Args:
+        checker: the validity checker whose model (robot + scene, no actuators) is used.
+        params: energy parameters.
+    """
+
+    def __init__(self, checker: ValidityChecker, params: EnergyParams = EnergyParams()) -> None:
+        self.params = params
+        self.model = checker.model
+        self.index = checker.index
+        self._data = mujoco.MjData(self.model)
+        m = self.model
+        self.capsules: CapsuleSet = robot_capsules(m, self.index)
+        self.obstacles: CapsuleSet = world_capsules(m, self.index)
+        self.planes: tuple[HalfSpace, ...] = ground_halfspaces(m, self.index)
+        self.pair_i, self.pair_j = non_adjacent_pairs(m, self.capsules)
+        # static world capsules: endpoints fixed once
+        d0 = mujoco.MjData(m)
+        mujoco.mj_kinematics(m, d0)
+        self._obs_a, self._obs_b = self.obstacles.world_endpoints(d0)
+        self._bodies = np.unique(self.capsules.body)
+        self._body_slot = {int(b): k for k, b in enumerate(self._bodies)}
+        self._cap_slot = np.array([self._body_slot[int(b)] for b in self.capsules.body], dtype=int)
+        # against planes, boxes count by their exact corners (capsules inside a box miss them)
+        box_geoms = {int(g) for g in self.index.robot_geoms if int(m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_BOX)}
+        self._plane_caps = np.array([int(g) not in box_geoms for g in self.capsules.geom], dtype=bool)
+        c_body, _, c_local = box_corners(m, self.index.robot_geoms)
+        self._corner_body = c_body
+        self._corner_local = c_local
+        self._corner_slot = np.array([self._body_slot[int(b)] for b in c_body], dtype=int)
+        self._jacp = np.zeros((3, m.nv))
+        self._jacr = np.zeros((3, m.nv))
+
+    @property
+    def nv(self) -> int:
+        return int(self.model.nv)
+
+    def __call__(self, qpos: np.ndarray, *, gradient: bool = True) -> EnergyValue:
+        """Energy (and gradient) of one qpos of the checker's model, shape (nq,)."""
+        m, d, p = self.model, self._data, self.params
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        if gradient:
+            mujoco.mj_comPos(m, d)  # cdof, needed by mj_jacBody
+        caps = self.capsules
+        a, b = caps.world_endpoints(d)
+        eps = p.softening_m
+        # points (K_points, 3) and forces dE/dx on them (gradient of E w.r.t. the point position)
+        points: list[np.ndarray] = []
+        forces: list[np.ndarray] = []
+        slots: list[np.ndarray] = []
+
+        # --- internal term, eq. (1): non-neighbouring capsule pairs
+        i, j = self.pair_i, self.pair_j
+        dist, s, t = segment_closest_points(a[i], b[i], a[j], b[j])
+        delta = dist - caps.radius[i] - caps.radius[j]
+        h, dh = _soft(delta, eps)
+        e_int = float(np.sum(h ** (-p.falloff_d)))
+        min_self = float(delta.min()) if delta.size else math.inf
+        if gradient and delta.size:
+            ci = a[i] + s[:, None] * (b[i] - a[i])
+            cj = a[j] + t[:, None] * (b[j] - a[j])
+            n = (ci - cj) / np.where(dist > 1e-12, dist, 1.0)[:, None]
+            de = (-p.falloff_d * h ** (-p.falloff_d - 1) * dh)[:, None] * n  # dE/d(ci)
+            points += [ci, cj]
+            forces += [de, -de]
+            slots += [self._cap_slot[i], self._cap_slot[j]]
+
+        # --- external term, eq. (2): ground half-spaces and obstacle capsules
+        e_ext = 0.0
+        min_ext = math.inf
+        q = p.external_exponent
+        w = p.external_weight
+        corners = d.xpos[self._corner_body] + np.einsum("cij,cj->ci", d.xmat[self._corner_body].reshape(-1, 3, 3), self._corner_local)
+        pc = self._plane_caps
+        for plane in self.planes:
+            za = plane.signed_distance(a[pc])
+            zb = plane.signed_distance(b[pc])
+            low = np.where(za <= zb, 0.0, 1.0)
+            # for a segment parallel to the plane every point is nearest: take the middle
+            low = np.where(np.abs(za - zb) < 1e-9, 0.5, low)
+            pt = np.concatenate([a[pc] + low[:, None] * (b[pc] - a[pc]), corners])
+            delta_g = np.concatenate([np.minimum(za, zb) - caps.radius[pc], plane.signed_distance(corners)])
+            hg, dhg = _soft(delta_g, eps)
+            e_ext += w * float(np.sum(hg ** (-q)))
+            min_ext = min(min_ext, float(delta_g.min()))
+            if gradient:
+                points.append(pt)
+                forces.append((w * -q * hg ** (-q - 1) * dhg)[:, None] * plane.normal[None, :])
+                slots.append(np.concatenate([self._cap_slot[pc], self._corner_slot]))
+        if len(self.obstacles):
+            k_r = np.arange(len(caps))
+            ri, oi = np.meshgrid(k_r, np.arange(len(self.obstacles)), indexing="ij")
+            ri, oi = ri.ravel(), oi.ravel()
+            dist_o, s_o, t_o = segment_closest_points(a[ri], b[ri], self._obs_a[oi], self._obs_b[oi])
+            delta_o = dist_o - caps.radius[ri] - self.obstacles.radius[oi]
+            ho, dho = _soft(delta_o, eps)
+            e_ext += w * float(np.sum(ho ** (-q)))
+            min_ext = min(min_ext, float(delta_o.min()))
+            if gradient:
+                cr = a[ri] + s_o[:, None] * (b[ri] - a[ri])
+                co = self._obs_a[oi] + t_o[:, None] * (self._obs_b[oi] - self._obs_a[oi])
+                n_o = (cr - co) / np.where(dist_o > 1e-12, dist_o, 1.0)[:, None]
+                points.append(cr)
+                forces.append((w * -q * ho ** (-q - 1) * dho)[:, None] * n_o)
+                slots.append(self._cap_slot[ri])
+
+        grad = None
+        if gradient:
+            grad = self._generalized_gradient(d, np.concatenate(points), np.concatenate(forces), np.concatenate(slots))
+        return EnergyValue(e_int + e_ext, e_int, e_ext, grad, min_self, min_ext)
+
+    def _generalized_gradient(self, d: mujoco.MjData, pts: np.ndarray, f: np.ndarray, slot: np.ndarray) -> np.ndarray:
+        """Sum of J_p^T f over points p on bodies: per body, J_p^T f = jacp^T f + jacr^T (r x f)."""
+        m = self.model
+        nb = len(self._bodies)
+        origin = d.xpos[self._bodies][slot]
+        force = np.zeros((nb, 3))
+        torque = np.zeros((nb, 3))
+        np.add.at(force, slot, f)
+        np.add.at(torque, slot, np.cross(pts - origin, f))
+        grad = np.zeros(m.nv)
+        jacp, jacr = self._jacp, self._jacr
+        for k, body in enumerate(self._bodies):
+            mujoco.mj_jacBody(m, d, jacp, jacr, int(body))
+            grad += jacp.T @ force[k] + jacr.T @ torque[k]
+        return grad
+
+
+# --- tangent-space helpers ------------------------------------------------------------------------
+
+
+def tangent_difference(m: mujoco.MjModel, qpos_from: np.ndarray, qpos_to: np.ndarray) -> np.ndarray:
+    """v with integrate(qpos_from, v) = qpos_to (root: world linear, body-frame angular), shape (nv,)."""
+    v = np.zeros(m.nv)
+    mujoco.mj_differentiatePos(m, v, 1.0, qpos_from, qpos_to)
+    return v
+
+
+def tangent_step(m: mujoco.MjModel, qpos: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """qpos moved by tangent vector v (quaternion kept unit), shape (nq,)."""
+    q = np.array(qpos, dtype=float)
+    mujoco.mj_integratePos(m, q, v, 1.0)
+    return q
+
+
+def _travel_bound(levers: tuple[float, np.ndarray], v: np.ndarray, idx_root: slice, dof_joints: np.ndarray) -> float:
+    """Upper bound on the travel [m] of any robot point for the tangent motion v."""
+    r_root, r_joint = levers
+    return float(np.linalg.norm(v[0:3]) + r_root * np.linalg.norm(v[3:6]) + np.sum(r_joint * np.abs(v[dof_joints])))
+
+
+def _levers(checker: ValidityChecker) -> tuple[float, np.ndarray]:
+    """Lever arms of the robot geometry: the other planner's bound if present, else a safe constant."""
+    try:
+        from robot_rise.planning.motion_validator import lever_arms  # the RRT-blossom engineer's bound
+
+        r_root, r_joint = lever_arms(checker)
+        return float(r_root), np.asarray(r_joint, dtype=float)
+    except Exception:  # absent or changed: a conservative bound for a 0.51 m robot
+        return 0.4, np.full(len(checker.robot.joint_names), 0.35)
+
+
+def segment_is_valid(
+    checker: ValidityChecker,
+    qpos_a: np.ndarray,
+    qpos_b: np.ndarray,
+    *,
+    resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
+    levers: tuple[float, np.ndarray] | None = None,
+) -> bool:
+    """Is the straight tangent-space motion qpos_a -> qpos_b legal at the given travel resolution?
+
+    The motion is lerp of root position and joints and slerp of the root orientation; it is
+    checked at evenly spaced postures such that no robot point travels more than
+    ``resolution_m`` between two of them (both ends included).
+    """
+    m = checker.model
+    v = tangent_difference(m, qpos_a, qpos_b)
+    lev = levers if levers is not None else _levers(checker)
+    n = max(1, int(math.ceil(_travel_bound(lev, v, slice(0, 6), checker.index.dof_joints) / resolution_m)))
+    for k in range(n + 1):
+        if not checker.is_valid_qpos(tangent_step(m, qpos_a, v * (k / n))):
+            return False
+    return True
+
+
+# --- constraints (Algorithm 2) --------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PositionalConstraint:
+    """Keep a point of a body at a target (paper 004 eq. 12), e.g. a hand or knee on the ground.
+
+    Attributes:
+        body: body name.
+        local_point: the point in the body frame [m], shape (3,).
+        target: target world position [m], shape (3,); only ``axes`` are constrained.
+        axes: world axes constrained (0 = x, 1 = y, 2 = z), e.g. (2,) keeps only the height.
+    """
+
+    body: str
+    local_point: np.ndarray
+    target: np.ndarray
+    axes: tuple[int, ...] = (0, 1, 2)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "local_point", np.asarray(self.local_point, dtype=float).reshape(3))
+        object.__setattr__(self, "target", np.asarray(self.target, dtype=float).reshape(3))
+        if not self.axes or any(a not in (0, 1, 2) for a in self.axes):
+            raise ValueError(f"axes must be a non-empty subset of (0, 1, 2), got {self.axes}")
+
+
+class _Constraints:
+    """Linearised constraints K dq = C (eq. 9) at one posture: joint limits (eq. 13) and positions (eq. 12)."""
+
+    def __init__(self, checker: ValidityChecker, positional: tuple[PositionalConstraint, ...], scale: np.ndarray) -> None:
+        self.model = checker.model
+        self.index = checker.index
+        self.lower = checker.robot.joint_lower
+        self.upper = checker.robot.joint_upper
+        self.positional = positional
+        self.scale = scale  # tangent scaling: y = scale * v
+        self._data = mujoco.MjData(self.model)
+        self._bodies = []
+        for c in positional:
+            b = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, c.body)
+            if b < 0:
+                names = [self.model.body(k).name for k in range(self.model.nbody)]
+                raise ValueError(f"positional constraint: no body {c.body!r}; bodies: {', '.join(names)}")
+            self._bodies.append(b)
+
+    def rows(self, qpos: np.ndarray, step_y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """K (r, nv) in scaled coordinates and C (r,) for the step about to be taken.
+
+        Joint-limit rows appear only for joints the step would carry past a bound (eq. 13);
+        positional rows always (a point kept on the ground must not drift).
+        """
+        K_rows: list[np.ndarray] = []
+        C: list[float] = []
+        qj = qpos[self.index.qpos_joints]
+        dj = step_y[self.index.dof_joints] / self.scale[self.index.dof_joints]
+        nxt = qj + dj
+        for k in np.flatnonzero((nxt < self.lower) | (nxt > self.upper)):
+            row = np.zeros(self.model.nv)
+            row[self.index.dof_joints[k]] = 1.0 / self.scale[self.index.dof_joints[k]]
+            bound = self.lower[k] if nxt[k] < self.lower[k] else self.upper[k]
+            K_rows.append(row)
+            C.append(float(np.clip(bound, self.lower[k], self.upper[k]) - qj[k]))
+        if self.positional:
+            d = self._data
+            d.qpos[:] = qpos
+            mujoco.mj_kinematics(self.model, d)
+            mujoco.mj_comPos(self.model, d)
+            jacp = np.zeros((3, self.model.nv))
+            for c, b in zip(self.positional, self._bodies):
+                x = d.xpos[b] + d.xmat[b].reshape(3, 3) @ c.local_point
+                mujoco.mj_jac(self.model, d, jacp, None, x, b)
+                for ax in c.axes:
+                    K_rows.append(jacp[ax] / self.scale)
+                    C.append(float(c.target[ax] - x[ax]))
+        if not K_rows:
+            return np.zeros((0, self.model.nv)), np.zeros(0)
+        return np.array(K_rows), np.array(C)
+
+    def positional_error(self, qpos: np.ndarray) -> float:
+        """Largest positional-constraint violation [m] (0 without positional constraints)."""
+        if not self.positional:
+            return 0.0
+        d = self._data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, d)
+        err = 0.0
+        for c, b in zip(self.positional, self._bodies):
+            x = d.xpos[b] + d.xmat[b].reshape(3, 3) @ c.local_point
+            err = max(err, float(np.max(np.abs(x[list(c.axes)] - c.target[list(c.axes)]))))
+        return err
+
+
+def _project_constraints(dq: np.ndarray, K: np.ndarray, C: np.ndarray, g_hat: np.ndarray, p: EnergyParams) -> np.ndarray:
+    """Eq. (10), then eq. (11) if the constrained step would raise the energy.
+
+    Eq. (10): the minimum-norm change of the step dq such that K dq' = C, solved in the damped
+    least-squares sense (soft constraints, rank-deficient K allowed; damping gamma of the paper).
+    Eq. (11): if dq' . g > 0, the energy row is stacked under K, J = [K; g^T], with target
+    [C; omega] (omega < 0: a small energy decrease along the normalised gradient).
+
+    Args:
+        dq: the step in scaled tangent coordinates, shape (nv,).
+        K, C: constraint rows (r, nv) and targets (r,).
+        g_hat: normalised energy gradient in scaled tangent coordinates, shape (nv,).
+    """
+    if K.shape[0] == 0:
+        return dq
+    damp = p.gamma * p.gamma
+    lam = np.linalg.lstsq(K @ K.T + damp * np.eye(K.shape[0]), K @ dq - C, rcond=None)[0]
+    dq1 = dq - K.T @ lam
+    if float(dq1 @ g_hat) <= 0.0 or not np.any(g_hat):
+        return dq1
+    J = np.vstack([K, g_hat[None, :]])
+    target = np.concatenate([C, [p.omega]])
+    lam_e = np.linalg.lstsq(J @ J.T + damp * np.eye(J.shape[0]), J @ dq - target, rcond=None)[0]
+    return dq - J.T @ lam_e
+
+
+# --- local minimum (section 8) --------------------------------------------------------------------
+
+
+@dataclass
+class EnergyWindow:
+    """Local-minimum detector of paper 004 section 8 (mutable state of one planning run).
+
+    The window starts below the higher of the two initial energies; each iteration, if the lower
+    energy of the two ends falls out of the window, the window slides down to contain it. When
+    the ends stay in one window for ``patience`` iterations, it is a local minimum. Ours: an
+    iteration in which the two ends come closer than ever before by at least a tenth of a step
+    also counts as progress (linear safe-zone steps move without changing the energy much).
+    """
+
+    top: float
+    fraction: float
+    patience: int
+    best_gap: float = math.inf
+    stuck: int = 0
+
+    def update(self, e_low: float, gap: float, min_progress: float) -> bool:
+        """Feed one iteration; True when a local minimum is detected."""
+        bottom = self.top * (1.0 - self.fraction)
+        progressed = False
+        if e_low < bottom:
+            self.top = e_low
+            progressed = True
+        if gap < self.best_gap - min_progress:
+            self.best_gap = gap
+            progressed = True
+        self.stuck = 0 if progressed else self.stuck + 1
+        return self.stuck >= self.patience
+
+
+# --- Algorithms 1 and 2 ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class InterpolationOutcome:
+    """Result of ``energy_interpolate``.
+
+    Attributes:
+        status: EXACT_SOLUTION, FAILED (local minimum / blocked / verification), TIMEOUT, INVALID_*.
+        qpos: the path as qpos rows of the checker's model, shape (K, nq) (None on failure).
+        reason: why it failed; empty on success.
+        stats: counters (iterations, linear/projected/constrained steps, energies, seconds).
+    """
+
+    status: PlanStatus
+    qpos: np.ndarray | None
+    reason: str = ""
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+def _tangent_scale(checker: ValidityChecker, p: EnergyParams) -> np.ndarray:
+    scale = np.ones(checker.model.nv)
+    scale[checker.index.qvel_root[:3]] = 1.0 / p.root_translation_scale_m
+    return scale
+
+
+def energy_interpolate(
+    checker: ValidityChecker,
+    qpos_start: np.ndarray,
+    qpos_goal: np.ndarray,
+    *,
+    params: EnergyParams = EnergyParams(),
+    constraints: tuple[PositionalConstraint, ...] = (),
+    budget_s: float = 30.0,
+    energy: RepulsiveEnergy | None = None,
+    gli: GliMatrix | None = None,
+) -> InterpolationOutcome:
+    """Energy-based bidirectional interpolation (paper 004 Algorithm 1; Algorithm 2 with constraints).
+
+    Each iteration moves the end of higher energy, P_h, toward the other, P_l, by one step of
+    length alpha in the scaled tangent space: linearly inside the safe zone (eq. 8), else along
+    D = (P_l - P_h)/|P_l - P_h| if that does not raise the energy, else along the projection
+    (I - g g^T) D with a little descent (eq. 5). Joint limits and positional constraints are
+    enforced by the null-space projections of eq. (10)-(11). Every accepted posture is legal for
+    ``checker``; when the two ends can be joined by a legal straight motion they are, and the
+    whole path M_1 + reverse(M_2) is verified at ``params.verify_resolution_m``.
+
+    Args:
+        checker: the strict validity checker (robot + scene).
+        qpos_start, qpos_goal: qpos of the checker's model, shape (nq,).
+        params: energy and algorithm parameters.
+        constraints: positional constraints kept along the whole path (Algorithm 2).
+        budget_s: wall-clock budget [s].
+        energy, gli: reuse prebuilt objects (they are rebuilt from the checker otherwise).
+
+    Returns:
+        InterpolationOutcome; failures carry a status and a reason, never an exception.
+    """
+    t0 = time.monotonic()
+    p = params
+    m = checker.model
+    if not checker.is_valid_qpos(qpos_start):
+        return InterpolationOutcome(PlanStatus.INVALID_START, None, "start: " + "; ".join(checker.check_qpos(qpos_start).reasons()))
+    if not checker.is_valid_qpos(qpos_goal):
+        return InterpolationOutcome(PlanStatus.INVALID_GOAL, None, "goal: " + "; ".join(checker.check_qpos(qpos_goal).reasons()))
+    energy = energy if energy is not None else RepulsiveEnergy(checker, p)
+    gli = gli if gli is not None else GliMatrix(checker.robot, m, checker.index)
+    scale = _tangent_scale(checker, p)
+    cons = _Constraints(checker, constraints, scale)
+    levers = _levers(checker)
+    root = np.asarray(checker.index.qvel_root)
+    alpha = p.step_rad
+
+    ends = [np.array(qpos_start, dtype=float), np.array(qpos_goal, dtype=float)]
+    paths: list[list[np.ndarray]] = [[ends[0].copy()], [ends[1].copy()]]
+    evals = [energy(ends[0]), energy(ends[1])]
+    glis = [gli(ends[0]), gli(ends[1])]
+    window = EnergyWindow(max(evals[0].total, evals[1].total), p.window_fraction, p.patience)
+    stats: dict[str, Any] = {
+        "iterations": 0,
+        "direct_steps": 0,
+        "projected_steps": 0,
+        "descent_steps": 0,
+        "constrained_steps": 0,
+        "rejected_steps": 0,
+        "connect_attempts": 0,
+        "safe_zone_refuted": 0,
+        "energy_start": evals[0].total,
+        "energy_goal": evals[1].total,
+    }
+
+    def finish(status: PlanStatus, reason: str, q: np.ndarray | None) -> InterpolationOutcome:
+        stats["seconds"] = time.monotonic() - t0
+        return InterpolationOutcome(status, q, reason, stats)
+
+    last_connect_gap = math.inf
+    for it in range(p.max_iterations):
+        stats["iterations"] = it + 1
+        if time.monotonic() - t0 > budget_s:
+            return finish(PlanStatus.TIMEOUT, f"budget of {budget_s:.1f} s spent after {it} iterations", None)
+        v_gap = tangent_difference(m, ends[0], ends[1])
+        gap = float(np.linalg.norm(scale * v_gap))
+        e_gli = gli_difference(glis[0], glis[1])
+        safe = p.use_safe_zone and e_gli < p.gli_threshold
+        # section 5.2.2: inside the safe zone, f = f1 + lerp(P1e, P2e) + f2. We ask the checker
+        # whether the straight motion between the ends is legal instead of trusting eq. (8) alone
+        # (short, thick robot links can stay under the threshold while crossed); tried again
+        # whenever the gap shrank by a fifth, and always within one step
+        # (with positional constraints only within one step: a long straight motion ignores them)
+        if gap <= alpha or (safe and not constraints and gap < 0.8 * last_connect_gap):
+            stats["connect_attempts"] += 1
+            last_connect_gap = gap
+            if segment_is_valid(checker, ends[0], ends[1], resolution_m=p.verify_resolution_m, levers=levers):
+                path = np.array(paths[0] + paths[1][::-1])
+                return _verified(checker, path, p, levers, finish, stats)
+            if safe:
+                stats["safe_zone_refuted"] += 1  # eq. (8) said safe, the checker said no
+        h = 0 if evals[0].total >= evals[1].total else 1
+        lo = 1 - h
+        qh = ends[h]
+        D = scale * tangent_difference(m, qh, ends[lo])
+        D_hat = D / max(float(np.linalg.norm(D)), 1e-12)
+        g = evals[h].gradient / scale
+        if not p.move_root:
+            g = g.copy()
+            g[root] = 0.0
+        g_norm = float(np.linalg.norm(g))
+        g_hat = g / g_norm if g_norm > 1e-12 else np.zeros_like(g)
+
+        accepted = False
+        # Attempts, in order: the paper's step (D if it does not climb, else eq. 5), then more and
+        # more descent (a rejected step collided or climbed: move away from the nearest links),
+        # then pure descent (eq. 4) at halving lengths. Algorithm 1 steps linearly inside the safe
+        # zone only when there is no environment (O empty); the ground is always there, so the
+        # safe zone here only triggers the straight connection above.
+        proj = D_hat - g_hat * float(g_hat @ D_hat)  # eq. (5): (I - g g^T) D
+        plan: list[tuple[str, np.ndarray]] = []
+        if float(D_hat @ g_hat) <= 0.0:
+            plan.append(("direct_steps", D_hat * min(alpha, gap)))
+        for beta in (p.descent_beta, 1.0, 3.0):
+            plan.append(("projected_steps", alpha * (proj - beta * g_hat)))
+        for frac in (1.0, 0.5, 0.25, 0.125):
+            plan.append(("descent_steps", -alpha * frac * g_hat))
+        for attempt, (kind, dy) in enumerate(plan):
+            if not np.any(dy):
+                continue
+            K, C = cons.rows(qh, dy)
+            constrained = K.shape[0] > 0
+            if constrained:  # Algorithm 2: project onto the constraints' null space
+                dy = _project_constraints(dy, K, C, g_hat, p)
+            q_new = tangent_step(m, qh, dy / scale)
+            # eq. (13) as a hard bound: the least-squares projection leaves residuals of ~1e-6 rad
+            qj = checker.index.qpos_joints
+            q_new[qj] = np.clip(q_new[qj], checker.robot.joint_lower, checker.robot.joint_upper)
+            valid = checker.is_valid_qpos(q_new)
+            if log.isEnabledFor(logging.DEBUG):
+                log.debug(
+                    "it %d side %d attempt %d %s |dy| %.4f D.g %.3f valid %s E_h %.4g E_new %.4g",
+                    it, h, attempt, kind, float(np.linalg.norm(dy)), float(D_hat @ g_hat), valid,
+                    evals[h].total, energy(q_new, gradient=False).total,
+                )
+                if not valid:
+                    log.debug("  invalid: %s", "; ".join(checker.check_qpos(q_new).reasons()))
+            if valid:
+                e_new = energy(q_new)
+                # a step must not climb (energy barrier of section 4.2), up to a 0.1 % tolerance
+                if e_new.total <= evals[h].total * (1.0 + 1e-3):
+                    accepted = True
+                    break
+            stats["rejected_steps"] += 1
+        if not accepted:
+            return finish(
+                PlanStatus.FAILED,
+                f"blocked: no legal energy-non-increasing step from the {'start' if h == 0 else 'goal'} side after {it} iterations",
+                None,
+            )
+        stats[kind] += 1
+        stats["constrained_steps"] += int(constrained)
+        ends[h] = q_new
+        evals[h] = e_new
+        glis[h] = gli(q_new)
+        paths[h].append(q_new)
+        e_low = min(evals[0].total, evals[1].total)
+        log.debug("it %d moved %d by %s: E %.4g / %.4g, gap %.3f, E_gli %.3f", it, h, kind, evals[0].total, evals[1].total, gap,
+                  gli_difference(glis[0], glis[1]))
+        if window.update(e_low, gap, 0.1 * alpha):
+            return finish(
+                PlanStatus.FAILED,
+                f"local minimum (paper 004 section 8): energies {evals[0].total:.4g} / {evals[1].total:.4g} and gap "
+                f"{gap:.3f} rad stayed in one window for {p.patience} iterations",
+                None,
+            )
+    return finish(PlanStatus.FAILED, f"no meeting after {p.max_iterations} iterations", None)
+
+
+def _verified(checker, path, p, levers, finish, stats) -> InterpolationOutcome:
+    """Verify every segment of the path at the fine resolution (steps can skip thin contacts)."""
+    for k in range(len(path) - 1):
+        if not segment_is_valid(checker, path[k], path[k + 1], resolution_m=p.verify_resolution_m, levers=levers):
+            return finish(PlanStatus.FAILED, f"verification: segment {k} of {len(path) - 1} is illegal at {p.verify_resolution_m} m", None)
+    stats["waypoints"] = len(path)
+    return finish(PlanStatus.EXACT_SOLUTION, "", path)
+
+
+FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
+
+
+def plan_energy(
+    problem: PlanningProblem,
+    *,
+    params: EnergyParams = EnergyParams(),
+    constraints: tuple[PositionalConstraint, ...] = (),
+    retry_falloffs: tuple[int, ...] = FALLOFF_RETRY_SCHEDULE,
+) -> PlanResult:
+    """The energy-driven planner behind the shared interface: ``plan_energy(problem) -> PlanResult``.
+
+    Plans start -> goal (through ``problem.key`` when given, as two legs) with
+    ``energy_interpolate``. Local minima depend on the fall-off exponent d (paper 004 section 8),
+    so after a FAILED leg the other exponents of ``retry_falloffs`` are tried in turn within the
+    budget. Deterministic: ``problem.seed`` is not used (no randomness).
+
+    Returns:
+        PlanResult with a PostureSequence path on success, or a status and a reason.
+    """
+    checker = problem.checker
+    robot = checker.robot
+    t0 = time.monotonic()
+    gli = GliMatrix(robot, checker.model, checker.index)
+    schedule = [params.falloff_d] + [d for d in retry_falloffs if d != params.falloff_d]
+    energies: dict[int, RepulsiveEnergy] = {}
+    legs = [problem.start, problem.goal] if problem.key is None else [problem.start, problem.key, problem.goal]
+    rows: list[np.ndarray] = []
+    stats: dict[str, Any] = {"planner": "energy", "legs": []}
+    for k in range(len(legs) - 1):
+        reasons = []
+        out = None
+        for d in schedule:
+            remaining = problem.budget_s - (time.monotonic() - t0)
+            if remaining <= 0.0:
+                break
+            p_d = dataclasses.replace(params, falloff_d=d)
+            if d not in energies:
+                energies[d] = RepulsiveEnergy(checker, p_d)
+            out = energy_interpolate(
+                checker,
+                checker.qpos_of(legs[k]),
+                checker.qpos_of(legs[k + 1]),
+                params=p_d,
+                constraints=constraints,
+                budget_s=remaining,
+                energy=energies[d],
+                gli=gli,
+            )
+            out.stats["falloff_d"] = d
+            stats["legs"].append(out.stats)
+            if out.status is not PlanStatus.FAILED:
+                break
+            reasons.append(f"d={d}: {out.reason}")
+            log.info("energy planner, leg %d, d=%d failed: %s", k, d, out.reason)
+        if out is None:
+            out = InterpolationOutcome(PlanStatus.TIMEOUT, None, f"budget of {problem.budget_s:.1f} s spent")
+        if out.status is not PlanStatus.EXACT_SOLUTION or out.qpos is None:
+            status = out.status
+            if status is PlanStatus.INVALID_GOAL and problem.key is not None and k == 0:
+                status = PlanStatus.FAILED  # an illegal key posture: not the goal's fault
+            reason = "; ".join(reasons) if status is PlanStatus.FAILED and reasons else out.reason
+            stats["seconds"] = time.monotonic() - t0
+            return PlanResult(status, None, f"leg {k}: {reason}" if len(legs) > 2 else reason, stats)
+        rows.extend(out.qpos if k == 0 else out.qpos[1:])
+    stats["seconds"] = time.monotonic() - t0
+    stats["waypoints"] = len(rows)
+    postures: list[Posture] = [posture_from_qpos(robot, checker.index, q) for q in rows]
+    path = PostureSequence.from_postures(postures, robot.joint_names)
+    return PlanResult(PlanStatus.EXACT_SOLUTION, path, "", stats)
+
+
+@dataclass(frozen=True)
+class EnergyPlanner:
+    """``plan_energy`` as a ``Planner`` object (for ``plan_trajectory(problem, planner=...)``)."""
+
+    params: EnergyParams = EnergyParams()
+    constraints: tuple[PositionalConstraint, ...] = ()
+
+    def __call__(self, problem: PlanningProblem) -> PlanResult:
+        return plan_energy(problem, params=self.params, constraints=self.constraints)
