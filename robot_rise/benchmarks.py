@@ -55,3 +55,142 @@ def bench_validity(
         valid += checker.is_valid_qpos(q)
     dt = time.perf_counter() - t0
     return ValidityBenchmark(str(scene), n, dt, n / dt, valid / n)
+
+
+# --- rise: the product's main job over random lying postures (issue 6) ---------------------------
+
+ROBUSTNESS_VARIANTS: dict[str, dict[str, float]] = {
+    "mass -10%, friction 0.5": {"mass_scale": 0.9, "friction_scale": 0.5 / 0.9},
+    "mass +10%, friction 1.2": {"mass_scale": 1.1, "friction_scale": 1.2 / 0.9},
+    "servo torque -15%": {"voltage_scale": 0.85},
+    "one control period of latency": {"latency_s": 0.01},
+}
+"""Replays of each proven trajectory under model errors. Friction scales are relative to the
+scene's ground friction 0.9 (so 0.5 and 1.2 absolute). Servo torque -15 % is a 15 % lower supply
+voltage (stall torque and no-load speed both scale with it). Latency: targets arrive one 100 Hz
+control period late."""
+
+
+@dataclass(frozen=True)
+class RiseCase:
+    """One posture of the rise benchmark and what became of it."""
+
+    name: str
+    kind: str
+    proven: bool
+    wall_s: float
+    duration_s: float
+    peak_torque_ratio: float
+    motion: str
+    reason: str
+    robust: dict[str, bool]
+
+
+def _rise_case(args: tuple) -> RiseCase:
+    import time as _time
+
+    from robot_rise.filter import prove
+    from robot_rise.model import load_robot
+    from robot_rise.rise import rise
+    from robot_rise.sim import Player
+    from robot_rise.trajectory import Trajectory
+
+    robot_dir, name, kind, posture, scene, budget_s, seed, robustness = args
+    robot = load_robot(robot_dir)
+    t0 = _time.perf_counter()
+    try:
+        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s)
+    except Exception as e:  # a benchmark reports failures, it does not stop on them
+        return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
+    wall = _time.perf_counter() - t0
+    rep = result.trajectory.report if result.trajectory is not None else {}
+    robust: dict[str, bool] = {}
+    if result.ok and robustness and result.trajectory is not None:
+        tr = result.trajectory
+        for label, v in ROBUSTNESS_VARIANTS.items():
+            player = Player(
+                robot, scene, mass_scale=v.get("mass_scale", 1.0), friction_scale=v.get("friction_scale", 1.0),
+                voltage_v=12.0 * v.get("voltage_scale", 1.0),
+            )
+            variant = tr
+            if "latency_s" in v:
+                lat = v["latency_s"]
+                variant = Trajectory(tr.robot, tr.joint_names, np.concatenate([[0.0], tr.t + lat]), np.vstack([tr.q[:1], tr.q]), tr.start, tr.report)
+            _, verdict, r = prove(robot, variant, scene=scene, player=player)
+            robust[label] = bool(verdict.standing and not verdict.self_collision)
+    return RiseCase(
+        name, kind, result.ok, wall, float(rep.get("duration_s", float("nan"))), float(rep.get("peak_torque_ratio", float("nan"))),
+        str(rep.get("motion", "")), result.reason, robust,
+    )
+
+
+def bench_rise(
+    robot: Robot,
+    *,
+    n_per_kind: int = 20,
+    seed: int = 0,
+    scene: str = "flat",
+    budget_s: float = 30.0,
+    jobs: int = 1,
+    robustness: bool = True,
+    progress=None,
+) -> list[RiseCase]:
+    """Rise from ``n_per_kind`` supine, prone and lateral (half left, half right) postures.
+
+    Postures come from ``sample_lying_postures`` with seeds ``seed`` (supine, prone) and ``seed``
+    (left, right), as the paper's protocol (000 section 5): 20 supine, 20 prone, 20 lateral.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    half = n_per_kind // 2
+    groups = [("supine", n_per_kind), ("prone", n_per_kind), ("left", half), ("right", n_per_kind - half)]
+    tasks = []
+    for kind, n in groups:
+        if n == 0:
+            continue
+        sample = sample_lying_postures(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
+        for i, p in enumerate(sample.postures):
+            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness))
+    results: list[RiseCase] = []
+    if jobs <= 1:
+        for k, task in enumerate(tasks):
+            results.append(_rise_case(task))
+            if progress:
+                progress(k + 1, len(tasks))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for k, case in enumerate(pool.map(_rise_case, tasks)):
+                results.append(case)
+                if progress:
+                    progress(k + 1, len(tasks))
+    return results
+
+
+def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
+    """Per lying kind (left and right pooled as lateral) and overall: success, wall-time and duration stats."""
+    out: dict[str, dict[str, float]] = {}
+    buckets = {"supine": [], "prone": [], "lateral": [], "all": []}  # type: dict[str, list[RiseCase]]
+    for c in cases:
+        buckets["lateral" if c.kind in ("left", "right") else c.kind].append(c)
+        buckets["all"].append(c)
+    for key, cs in buckets.items():
+        if not cs:
+            continue
+        wall = np.array([c.wall_s for c in cs])
+        ok = [c for c in cs if c.proven]
+        dur = np.array([c.duration_s for c in ok]) if ok else np.array([np.nan])
+        peak = np.array([c.peak_torque_ratio for c in ok]) if ok else np.array([np.nan])
+        row = {
+            "n": len(cs),
+            "success": len(ok) / len(cs),
+            "wall_median_s": float(np.median(wall)),
+            "wall_p95_s": float(np.percentile(wall, 95)),
+            "duration_median_s": float(np.median(dur)),
+            "peak_torque_ratio_max": float(np.max(peak)),
+        }
+        for label in ROBUSTNESS_VARIANTS:
+            tested = [c for c in ok if label in c.robust]
+            if tested:
+                row[f"robust: {label}"] = sum(c.robust[label] for c in tested) / len(tested)
+        out[key] = row
+    return out

@@ -28,6 +28,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     v.add_argument("--json", action="store_true", help="print JSON")
     add_robot_args(v, scene=False)
     v.set_defaults(func=run_validity)
+    r = bsub.add_parser("rise", help="rise from random lying postures: success, wall time, duration, robustness",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise bench rise --n-per-kind 20 --seed 0 --jobs 2")
+    r.add_argument("--n-per-kind", type=int, default=20, help="postures per kind: supine, prone, lateral (default: 20)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--scene", default="flat")
+    r.add_argument("--budget", type=float, default=30.0, help="planning budget per candidate [s]")
+    r.add_argument("--jobs", type=int, default=1, help="worker processes (default: 1; wall times are per posture either way)")
+    r.add_argument("--no-robustness", action="store_true", help="skip the replays under model errors")
+    r.add_argument("--json", action="store_true")
+    add_robot_args(r, scene=False)
+    r.set_defaults(func=run_rise)
     import robot_rise.cli as cli_pkg
 
     for info in pkgutil.iter_modules(cli_pkg.__path__):
@@ -47,4 +58,30 @@ def run_validity(args: argparse.Namespace) -> int:
     else:
         for r in results:
             print(f"validity checks, scene {r.scene}: {r.checks_per_second:,.0f} checks/s on one core ({r.checks} queries in {r.seconds:.2f} s, {100 * r.valid_fraction:.0f}% valid)")
+    return 0
+
+
+def run_rise(args: argparse.Namespace) -> int:
+    from robot_rise.benchmarks import bench_rise, summarize_rise
+    from robot_rise.cli._common import Progress
+
+    robot = load_robot_arg(args)
+    total = 3 * args.n_per_kind
+    cases = bench_rise(robot, n_per_kind=args.n_per_kind, seed=args.seed, scene=args.scene, budget_s=args.budget,
+                       jobs=args.jobs, robustness=not args.no_robustness, progress=Progress("rising", total))
+    summary = summarize_rise(cases)
+    if args.json:
+        print_json({"summary": summary, "cases": [c.__dict__ for c in cases]})
+        return 0
+    print("| kind | n | success | wall median / p95 [s] | get-up duration median [s] | peak torque ratio (max) |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for kind, row in summary.items():
+        print(f"| {kind} | {row['n']} | {100 * row['success']:.0f}% | {row['wall_median_s']:.1f} / {row['wall_p95_s']:.1f} | "
+              f"{row['duration_median_s']:.2f} | {row['peak_torque_ratio_max']:.2f} |")
+    robust = {k: v for k, v in summary.get("all", {}).items() if k.startswith("robust: ")}
+    for label, rate in robust.items():
+        print(f"{label.removeprefix('robust: ')}: {100 * rate:.0f}% of proven trajectories still stand")
+    for c in cases:
+        if not c.proven:
+            print(f"failed {c.name}: {c.reason[:300]}")
     return 0

@@ -1,0 +1,238 @@
+"""Tests of robot_rise.planning.energy: repulsive energy, gradient, Algorithms 1-2, local minima."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from robot_rise.constants import ENERGY_LOCAL_MINIMUM_PATIENCE
+from robot_rise.model import load_robot
+from robot_rise.planning import energy as energy_module
+from robot_rise.planning.bench_energy import crossed_problems, straight_motion_is_illegal
+from robot_rise.planning.energy import (
+    EnergyParams,
+    EnergyPlanner,
+    EnergyWindow,
+    PositionalConstraint,
+    RepulsiveEnergy,
+    energy_interpolate,
+    plan_energy,
+    segment_is_valid,
+    tangent_difference,
+    tangent_step,
+)
+from robot_rise.planning.problem import PlanningProblem, PlanStatus
+from robot_rise.validity import ValidityChecker
+
+
+@pytest.fixture(scope="module")
+def setup():
+    robot = load_robot()
+    checker = ValidityChecker(robot, "flat")
+    return robot, checker, RepulsiveEnergy(checker)
+
+
+@pytest.fixture(scope="module")
+def problems(setup):
+    robot, checker, _ = setup
+    return {p.kind: p for p in crossed_problems(robot, checker, n=1)}
+
+
+def _stand(robot, checker, jitter=0.0, seed=0):
+    q = checker.model.qpos0.copy()
+    q[checker.index.qpos_root] = robot.stand_qpos[:7]
+    q[checker.index.qpos_joints] = robot.stand_qpos[7:] + np.random.default_rng(seed).normal(size=robot.n_joints) * jitter
+    return q
+
+
+def test_that_every_name_in_all_resolves():
+    for name in energy_module.__all__:
+        assert hasattr(energy_module, name), name
+
+
+@pytest.mark.parametrize("falloff_d", [2, 3, 5])
+def test_that_the_analytic_gradient_matches_finite_differences(setup, falloff_d):
+    robot, checker, _ = setup
+    energy = RepulsiveEnergy(checker, EnergyParams(falloff_d=falloff_d))
+    m = checker.model
+    for seed in range(3):
+        q = _stand(robot, checker, jitter=0.3, seed=seed)
+        q[checker.index.qpos_root[2]] += 0.05  # off the ground: smooth branch of the softening
+        value = energy(q)
+        fd = np.zeros(m.nv)
+        h = 1e-6
+        for k in range(m.nv):
+            e = np.zeros(m.nv)
+            e[k] = h
+            fd[k] = (energy(tangent_step(m, q, e), gradient=False).total - energy(tangent_step(m, q, -e), gradient=False).total) / (2 * h)
+        assert np.allclose(value.gradient, fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
+
+
+def test_that_the_gradient_is_right_for_touching_links_and_the_ground_too(setup, problems):
+    robot, checker, energy = setup
+    m = checker.model
+    q = checker.qpos_of(problems["crossed_arms"].start)  # lying: links rest on the ground
+    value = energy(q)
+    fd = np.zeros(m.nv)
+    h = 1e-7
+    for k in range(m.nv):
+        e = np.zeros(m.nv)
+        e[k] = h
+        fd[k] = (energy(tangent_step(m, q, e), gradient=False).total - energy(tangent_step(m, q, -e), gradient=False).total) / (2 * h)
+    assert np.allclose(value.gradient, fd, rtol=1e-3, atol=1e-5 * np.abs(fd).max())
+
+
+def test_that_the_energy_rises_steeply_as_two_links_approach(setup, problems):
+    robot, checker, energy = setup
+    q = checker.qpos_of(problems["crossed_arms"].start)  # left forearm above the right one
+    k = checker.index.qpos_joints[robot.joint_index("l_sho_pitch")]
+    values = []
+    for delta in (0.0, 0.05, 0.1):  # lowering the left arm brings the forearms together
+        qq = q.copy()
+        qq[k] += delta
+        values.append(energy(qq, gradient=False))
+    assert values[0].min_self_m > values[1].min_self_m > values[2].min_self_m
+    assert values[2].internal - values[1].internal > values[1].internal - values[0].internal > 0.0
+
+
+def test_that_the_ground_term_grows_as_the_robot_sinks(setup):
+    robot, checker, energy = setup
+    q = _stand(robot, checker)
+    high, low = q.copy(), q.copy()
+    high[checker.index.qpos_root[2]] += 0.05
+    assert energy(high).external < energy(q).external
+    low[checker.index.qpos_root[2]] -= 0.01
+    assert energy(low).external > energy(q).external
+    assert energy(low).min_external_m < 0.0
+
+
+def test_that_a_descent_step_lowers_the_energy(setup, problems):
+    robot, checker, energy = setup
+    q = checker.qpos_of(problems["crossed_legs"].start)
+    v = energy(q)
+    step = -0.01 * v.gradient / np.linalg.norm(v.gradient)
+    assert energy(tangent_step(checker.model, q, step)).total < v.total
+
+
+def test_that_the_crossed_limb_problems_have_legal_ends_and_a_penetrating_straight_motion(setup, problems):
+    robot, checker, _ = setup
+    assert set(problems) == {"crossed_arms", "crossed_legs", "arm_under_back"}
+    for p in problems.values():
+        assert checker.is_valid(p.start) and checker.is_valid(p.goal)
+        assert straight_motion_is_illegal(checker, p.start, p.goal)
+
+
+@pytest.mark.parametrize("kind", ["crossed_arms", "crossed_legs", "arm_under_back"])
+def test_that_the_energy_planner_solves_the_crossed_limb_problems_with_a_legal_path(setup, problems, kind):
+    robot, checker, _ = setup
+    p = problems[kind]
+    result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))
+    assert result.status is PlanStatus.EXACT_SOLUTION, result.reason
+    q = result.path.qpos(checker)
+    assert np.allclose(q[0], checker.qpos_of(p.start))
+    assert np.allclose(q[-1], checker.qpos_of(p.goal), atol=1e-9)
+    for a, b in zip(q[:-1], q[1:]):
+        assert segment_is_valid(checker, a, b, resolution_m=0.005)
+
+
+def test_that_the_planner_object_and_function_agree_and_are_deterministic(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_arms"]
+    problem = PlanningProblem(p.start, p.goal, checker, budget_s=30.0)
+    a = plan_energy(problem)
+    b = EnergyPlanner()(problem)
+    assert a.solved and b.solved
+    assert np.array_equal(a.path.joints, b.path.joints)
+
+
+def test_that_an_illegal_start_is_reported_not_raised(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_arms"]
+    sunk = p.start.with_root(root_pos=p.start.root_pos - np.array([0, 0, 0.03]))
+    result = plan_energy(PlanningProblem(sunk, p.goal, checker))
+    assert result.status is PlanStatus.INVALID_START
+    assert "ground collision" in result.reason
+
+
+def test_that_joint_limits_hold_along_the_path(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_arms"]  # elbows start 5 degrees from their limits
+    result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))
+    assert result.solved
+    assert np.all(result.path.joints >= robot.joint_lower - 1e-9)
+    assert np.all(result.path.joints <= robot.joint_upper + 1e-9)
+
+
+def _hand_heights(checker, qs, body, local):
+    """Height of a body point along the path, with 20 postures per straight segment."""
+    m = checker.model
+    d = mujoco.MjData(m)
+    bid = m.body(body).id
+    out = []
+    dense = [qs[0]] + [tangent_step(m, a, tangent_difference(m, a, b) * s) for a, b in zip(qs[:-1], qs[1:]) for s in np.linspace(0.05, 1.0, 20)]
+    for q in dense:
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        out.append(float((d.xpos[bid] + d.xmat[bid].reshape(3, 3) @ local)[2]))
+    return np.array(out)
+
+
+def test_that_a_positional_constraint_keeps_a_hand_on_its_height(setup):
+    robot, checker, _ = setup
+    # standing 5 cm above the ground, the right arm swings from behind to in front: unconstrained,
+    # the hand dips on the way; constrained (eq. 12, height only), it stays near its start height
+    q0 = _stand(robot, checker)
+    q0[checker.index.qpos_root[2]] += 0.05
+    q1 = q0.copy()
+    k = checker.index.qpos_joints[robot.joint_index("r_sho_pitch")]
+    q0[k], q1[k] = -1.0, 1.0
+    body, local = "r_el_link", np.array([-0.01, -0.13, 0.0])
+    h0 = _hand_heights(checker, [q0, q1], body, local)
+    target = float(np.mean(h0))  # the ends differ by ~1 cm (elbow offset): hold their mean
+    assert abs(h0[0] - h0[1]) < 0.03
+    c = PositionalConstraint(body, local, np.array([0.0, 0.0, target]), axes=(2,))
+    free = energy_interpolate(checker, q0, q1, budget_s=20.0)
+    held = energy_interpolate(checker, q0, q1, constraints=(c,), budget_s=20.0)
+    assert free.status is PlanStatus.EXACT_SOLUTION and held.status is PlanStatus.EXACT_SOLUTION, held.reason
+    dip_free = target - np.min(_hand_heights(checker, free.qpos, body, local))
+    dip_held = target - np.min(_hand_heights(checker, held.qpos, body, local))
+    assert held.stats["constrained_steps"] > 0
+    assert dip_free > 0.02  # unconstrained, the swinging hand drops by centimetres
+    assert dip_held < 0.25 * dip_free
+
+
+def test_that_the_energy_window_detects_a_stall_after_the_patience():
+    w = EnergyWindow(top=100.0, fraction=0.02, patience=ENERGY_LOCAL_MINIMUM_PATIENCE)
+    assert not w.update(99.5, gap=1.0, min_progress=0.003)  # first gap counts as progress
+    hits = [w.update(99.5, gap=1.0, min_progress=0.003) for _ in range(ENERGY_LOCAL_MINIMUM_PATIENCE)]
+    assert hits[-1] and not any(hits[:-1])
+
+
+def test_that_the_energy_window_slides_when_the_energy_falls():
+    w = EnergyWindow(top=100.0, fraction=0.02, patience=3)
+    w.update(99.0, gap=1.0, min_progress=0.003)
+    for e in (97.0, 95.0, 93.0, 91.0, 89.0):
+        assert not w.update(e, gap=1.0, min_progress=0.003)
+    assert w.top == 89.0
+
+
+def test_that_a_local_minimum_is_reported_as_a_failure_with_its_reason(setup, problems, monkeypatch):
+    robot, checker, _ = setup
+    p = problems["crossed_legs"]
+    # a window that never slides and a gap that never shrinks: the detector must fire
+    monkeypatch.setattr(EnergyWindow, "update", lambda self, e, gap, mp: True)
+    out = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), budget_s=10.0)
+    assert out.status is PlanStatus.FAILED
+    assert "local minimum" in out.reason
+
+
+def test_that_tangent_difference_and_step_are_inverse(setup):
+    robot, checker, _ = setup
+    a = _stand(robot, checker, jitter=0.2, seed=1)
+    b = _stand(robot, checker, jitter=0.2, seed=2)
+    b[checker.index.qpos_root[3:]] = [math.cos(0.4), 0.0, math.sin(0.4), 0.0]
+    v = tangent_difference(checker.model, a, b)
+    assert np.allclose(tangent_step(checker.model, a, v), b, atol=1e-9)
