@@ -74,7 +74,11 @@ class Robot:
         limbs: limb name -> joint names (paper 004's five linkages; partial-body planning).
         sole_sites, torso_site: site names for the standing judge.
         stand_qpos: qpos of the ``stand`` keyframe (robot alone), shape (7 + n,).
-        xml_text: the robot MJCF (hashing and composition).
+        xml_path: the robot MJCF.
+        root_body: name of the body carrying the free joint.
+        keyframes: every keyframe's qpos (robot alone) by name.
+        library: name of the motion library the robot uses (``configs/motions/<library>``);
+            a retargeted variant keeps its source robot's library (paper 000 section 5.3).
     """
 
     name: str
@@ -91,6 +95,7 @@ class Robot:
     xml_path: Path
     root_body: str
     keyframes: dict[str, np.ndarray] = field(default_factory=dict)
+    library: str = ""
 
     @property
     def n_joints(self) -> int:
@@ -224,6 +229,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         xml_path=xml_path,
         root_body=root_body,
         keyframes=keyframes,
+        library=str(meta.get("library", meta.get("name", root.name))),
     )
 
 

@@ -143,7 +143,7 @@ def rise(
         validate_posture(key, robot, where="key posture")
         if not checker.is_valid(key):
             raise PostureError(f"key posture is not valid in scene {scene}: {'; '.join(checker.check(key).reasons()[:3])}")
-    library = library or load_library(robot_name=robot.name)
+    library = library or load_library(robot_name=robot.library)
     attempts: list[RiseAttempt] = []
     best_unproven: FilterResult | None = None
     for conn in connection_candidates(library, robot, key or start, candidates):
