@@ -1,0 +1,78 @@
+"""robot-rise plan: files in, a trajectory with root rows out; clear failures."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from robot_rise.cli import main
+from robot_rise.model import load_robot
+from robot_rise.planning.bench_problems import obstacle_problems
+from robot_rise.posture import write_posture
+from robot_rise.trajectory import read_trajectory
+from robot_rise.validity import ValidityChecker
+
+
+@pytest.fixture(scope="module")
+def beam(tmp_path_factory):
+    robot = load_robot()
+    p = next(q for q in obstacle_problems(robot) if q.scene == "beam")
+    d = tmp_path_factory.mktemp("plan")
+    write_posture(d / "lying.json", p.start)
+    write_posture(d / "crouch.json", p.goal)
+    return robot, p, d
+
+
+def test_that_plan_writes_a_trajectory_from_the_lying_to_the_connecting_posture(beam, capsys):
+    robot, p, d = beam
+    out = d / "traj.json"
+    rc = main(["plan", "--from", str(d / "lying.json"), "--to", str(d / "crouch.json"), "--scene", "beam", "--seed", "1", "--out", str(out)])
+    assert rc == 0
+    assert "wrote" in capsys.readouterr().out
+    tr = read_trajectory(out)
+    assert tr.root is not None and tr.root.shape == (len(tr.t), 7)
+    np.testing.assert_allclose(tr.q[0], p.start.joint_vector(robot.joint_names), atol=1e-5)
+    np.testing.assert_allclose(tr.q[-1], p.goal.joint_vector(robot.joint_names), atol=1e-5)
+    np.testing.assert_allclose(tr.root[-1, :3], p.goal.root_pos, atol=1e-5)
+    checker = ValidityChecker(robot, "beam")
+    qpos = np.tile(checker.model.qpos0, (len(tr.t), 1))  # every row re-checked kinematically
+    qpos[:, checker.index.qpos_root] = tr.root
+    qpos[:, checker.index.qpos_joints] = tr.q
+    assert checker.first_invalid(qpos) == -1
+    assert tr.report["planner"]["status"] == "exact solution"
+
+
+def test_that_plan_fails_with_exit_1_and_no_file_when_the_goal_is_in_collision(beam, capsys):
+    robot, p, d = beam
+    bad = p.goal.with_root(np.array([0.22, 0.0, 0.05]))  # inside the beam
+    write_posture(d / "bad.json", bad)
+    out = d / "none.json"
+    rc = main(["plan", "--from", str(d / "lying.json"), "--to", str(d / "bad.json"), "--scene", "beam", "--budget", "2", "--out", str(out)])
+    assert rc == 1
+    assert not out.exists()
+    err = capsys.readouterr().err
+    assert "invalid goal" in err and "obstacle collision" in err
+
+
+def test_that_plan_without_to_needs_the_library_or_says_to_pass_to(beam, capsys):
+    _, _, d = beam
+    try:
+        from robot_rise import library
+
+        if hasattr(library, "select_connecting_posture"):
+            pytest.skip("the motion library selects connecting postures: automatic selection is used")
+    except ImportError:
+        pass
+    rc = main(["plan", "--from", str(d / "lying.json"), "--out", str(d / "x.json")])
+    assert rc == 2
+    assert "--to" in capsys.readouterr().err
+
+
+def test_that_plan_prints_a_json_summary_on_request(beam, capsys):
+    _, _, d = beam
+    rc = main(["plan", "--from", str(d / "lying.json"), "--to", str(d / "crouch.json"), "--scene", "beam", "--json", "--out", str(d / "t2.json")])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["status"] == "exact solution" and summary["rows"] > 2

@@ -1,0 +1,98 @@
+"""Loose-to-strict refinement, cut and merge, partial-body, key postures and the obstacle scenes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robot_rise.constants import LOOSE_TO_STRICT_INCREMENT_M, VERIFY_RESOLUTION_M
+from robot_rise.model import load_robot
+from robot_rise.planning.bench_problems import obstacle_problems
+from robot_rise.planning.motion_validator import MotionValidator
+from robot_rise.planning.problem import PlanningProblem, PlanStatus
+from robot_rise.planning.refine import RRTBlossomPlanner, _runs, limbs_of_collisions, loose_to_strict_schedule
+from robot_rise.planning.space import PostureSpace
+from robot_rise.validity import Collision, ValidityChecker, ValidityReport
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot()
+
+
+@pytest.fixture(scope="module")
+def scenes(robot):
+    return {p.scene: p for p in obstacle_problems(robot)}
+
+
+def _states(seq):
+    return np.concatenate([seq.root_pos, seq.root_quat_wxyz, seq.joints], axis=1)
+
+
+def test_that_the_schedule_starts_with_obstacles_shrunk_to_zero_and_ends_strict(robot, scenes):
+    checker = ValidityChecker(robot, "beam")
+    p = scenes["beam"]
+    sched = loose_to_strict_schedule(checker, [checker.qpos_of(p.start), checker.qpos_of(p.goal)], LOOSE_TO_STRICT_INCREMENT_M)
+    assert sched[0].obstacle_shrink_m == pytest.approx(0.35)  # the beam's largest half-size
+    assert sched[-1].is_strict
+    steps = np.diff([lo.obstacle_shrink_m for lo in sched])
+    assert np.all(steps <= 0) and np.all(steps >= -LOOSE_TO_STRICT_INCREMENT_M - 1e-12)
+
+
+def test_that_flat_ground_needs_a_single_strict_iteration(robot, scenes):
+    checker = ValidityChecker(robot, "flat")
+    p = scenes["beam"]
+    assert [lo.is_strict for lo in loose_to_strict_schedule(checker, [checker.qpos_of(p.start)], 0.025)] == [True]
+
+
+def test_that_illegal_runs_close_in_time_are_merged():
+    bad = np.array([False, True, False, True, False, False, False, True, False])
+    assert _runs(bad, 2) == [(1, 4), (7, 8)]
+    assert _runs(bad, 1) == [(1, 2), (3, 4), (7, 8)]
+
+
+def test_that_partial_body_planning_moves_only_the_limbs_in_collision(robot):
+    checker = ValidityChecker(robot, "beam")
+    arm = ValidityReport(False, (), 0.05, 0.05, -0.01, (Collision("obstacle", "l_forearm", "beam", -0.01),))
+    both = ValidityReport(False, (), 0.05, -0.01, 0.05, (Collision("self", "r_foot", "l_shank", -0.01),))
+    ground = ValidityReport(False, (), -0.01, 0.05, 0.05, (Collision("ground", "ground", "l_forearm", -0.01),))
+    trunk = ValidityReport(False, (), 0.05, 0.05, -0.01, (Collision("obstacle", "torso", "beam", -0.01),))
+    assert limbs_of_collisions(robot, checker, arm) == ("left_arm",)
+    assert limbs_of_collisions(robot, checker, both) == ("left_leg", "right_leg")
+    assert limbs_of_collisions(robot, checker, ground) is None  # ground: full-body
+    assert limbs_of_collisions(robot, checker, trunk) is None  # the trunk belongs to no limb
+
+
+@pytest.mark.parametrize("scene", ["beam", "low_bed", "table"])
+def test_that_the_obstacle_scene_is_solved_collision_free(robot, scenes, scene):
+    p = scenes[scene]
+    checker = ValidityChecker(robot, scene)
+    res = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, budget_s=30.0, seed=0))
+    assert res.status is PlanStatus.EXACT_SOLUTION, res.reason
+    x = _states(res.path)
+    space = PostureSpace.for_robot(robot)
+    np.testing.assert_allclose(x[0], space.state(p.start), atol=1e-12)
+    np.testing.assert_allclose(x[-1], space.state(p.goal), atol=1e-12)
+    fine = MotionValidator(checker, space, VERIFY_RESOLUTION_M / 2)
+    assert not fine.illegal_edges(x).any()
+    assert res.stats["levels"] > 1  # the obstacle was grown loose-to-strict
+
+
+def test_that_a_key_posture_is_passed_through(robot, scenes):
+    p = scenes["beam"]
+    checker = ValidityChecker(robot, "flat")
+    key = p.goal.with_root(p.goal.root_pos + np.array([0.0, 0.0, 0.05]))  # the crouch, lifted 5 cm
+    assert checker.is_valid(key)
+    res = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, key=key, budget_s=20.0, seed=1))
+    assert res.solved, res.reason
+    x = _states(res.path)
+    k = PostureSpace.for_robot(robot).state(key)
+    assert np.min(np.max(np.abs(x - k), axis=1)) < 1e-12
+
+
+def test_that_an_invalid_key_posture_is_refused(robot, scenes):
+    p = scenes["beam"]
+    checker = ValidityChecker(robot, "beam")
+    key = p.goal.with_root(np.array([0.22, 0.0, 0.05]))  # inside the beam
+    res = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, key=key, budget_s=5.0))
+    assert res.status is PlanStatus.INVALID_GOAL and "key posture" in res.reason

@@ -1,0 +1,175 @@
+"""RRT-blossom planner (paper 000 section 3.2 / 4.2): paths are legal, exact at the ends, deterministic."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from robot_rise.constants import VERIFY_RESOLUTION_M
+from robot_rise.errors import PostureError
+from robot_rise.model import load_robot
+from robot_rise.planning.bench_problems import align_to_start, fallback_connecting_posture, lying_problems
+from robot_rise.planning.motion_validator import MotionValidator
+from robot_rise.planning.problem import PlanningProblem, PlanStatus
+from robot_rise.planning.refine import RRTBlossomPlanner
+from robot_rise.planning.rrt_blossom import rrt_blossom
+from robot_rise.planning.space import PostureSpace
+from robot_rise.posture import Posture
+from robot_rise.validity import ValidityChecker
+
+TEST_RESOLUTION_M = VERIFY_RESOLUTION_M / 2  # finer than anything the planner checked at
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot()
+
+
+@pytest.fixture(scope="module")
+def flat(robot):
+    return ValidityChecker(robot, "flat")
+
+
+@pytest.fixture(scope="module")
+def problems(robot):
+    return lying_problems(robot, 1, 3)  # one supine, prone, left, right
+
+
+@pytest.fixture(scope="module")
+def solved(problems, flat):
+    planner = RRTBlossomPlanner()
+    return [(p, planner(PlanningProblem(p.start, p.goal, flat, budget_s=20.0, seed=3))) for p in problems]
+
+
+def _states(seq):
+    return np.concatenate([seq.root_pos, seq.root_quat_wxyz, seq.joints], axis=1)
+
+
+def test_that_every_flat_ground_lying_posture_is_solved(solved):
+    for p, res in solved:
+        assert res.status is PlanStatus.EXACT_SOLUTION, f"{p.name}: {res.reason}"
+        assert res.reason == ""
+
+
+def test_that_a_planned_path_starts_and_ends_exactly_at_the_requested_postures(solved, robot):
+    space = PostureSpace.for_robot(robot)
+    for p, res in solved:
+        x = _states(res.path)
+        np.testing.assert_allclose(x[0], space.state(p.start), atol=1e-12)
+        np.testing.assert_allclose(x[-1], space.state(p.goal), atol=1e-12)
+
+
+def test_that_planned_paths_are_collision_free_at_a_finer_resolution_than_the_planner_used(solved, flat, robot):
+    v = MotionValidator(flat, PostureSpace.for_robot(robot), TEST_RESOLUTION_M)
+    for p, res in solved:
+        x = _states(res.path)
+        bad = v.illegal_edges(x)
+        assert not bad.any(), f"{p.name}: illegal edges {np.flatnonzero(bad)}"
+
+
+def test_that_planned_paths_respect_joint_limits(solved, robot):
+    for _, res in solved:
+        assert np.all(res.path.joints >= robot.joint_lower - 1e-9)
+        assert np.all(res.path.joints <= robot.joint_upper + 1e-9)
+        np.testing.assert_allclose(np.linalg.norm(res.path.root_quat_wxyz, axis=1), 1.0, atol=1e-9)
+
+
+def test_that_the_same_seed_gives_the_same_path_and_another_seed_another(problems, flat):
+    p = problems[1]
+    planner = RRTBlossomPlanner()
+    a = planner(PlanningProblem(p.start, p.goal, flat, budget_s=20.0, seed=5))
+    b = planner(PlanningProblem(p.start, p.goal, flat, budget_s=20.0, seed=5))
+    c = planner(PlanningProblem(p.start, p.goal, flat, budget_s=20.0, seed=6))
+    assert a.solved and b.solved and c.solved
+    np.testing.assert_array_equal(_states(a.path), _states(b.path))
+    assert len(a.path) != len(c.path) or not np.array_equal(_states(a.path), _states(c.path))
+
+
+def test_that_an_invalid_start_is_refused_with_the_constraint_named(problems, flat):
+    p = problems[0]
+    sunk = p.start.with_root(p.start.root_pos - np.array([0.0, 0.0, 0.03]))
+    res = RRTBlossomPlanner()(PlanningProblem(sunk, p.goal, flat, budget_s=5.0))
+    assert res.status is PlanStatus.INVALID_START
+    assert "ground collision" in res.reason and res.path is None
+
+
+CAGE = """<mujoco model="cage"><worldbody>
+  <geom name="ground" type="plane" size="3 3 0.05"/>
+  <geom name="wall_px" type="box" pos="0.40 0 0.15" size="0.02 0.42 0.15"/>
+  <geom name="wall_nx" type="box" pos="-0.40 0 0.15" size="0.02 0.42 0.15"/>
+  <geom name="wall_py" type="box" pos="0 0.40 0.15" size="0.42 0.02 0.15"/>
+  <geom name="wall_ny" type="box" pos="0 -0.40 0.15" size="0.42 0.02 0.15"/>
+  <geom name="lid" type="box" pos="0 0 0.32" size="0.42 0.42 0.02"/>
+</worldbody></mujoco>"""
+
+
+def test_that_an_impossible_problem_fails_cleanly_within_its_budget(robot, tmp_path, problems):
+    """Lying inside a closed box, goal outside it: no path exists; the planner says so in time."""
+    scene = tmp_path / "cage.xml"
+    scene.write_text(CAGE)
+    cage = ValidityChecker(robot, scene)
+    start = problems[0].start.with_root(np.array([0.0, 0.0, problems[0].start.root_pos[2]]))
+    assert cage.is_valid(start), cage.check(start).reasons()
+    goal = align_to_start(fallback_connecting_posture(robot), start, cage, xy=np.array([1.0, 0.0]))
+    assert cage.is_valid(goal)
+    budget = 2.0
+    t0 = time.monotonic()
+    res = RRTBlossomPlanner()(PlanningProblem(start, goal, cage, budget_s=budget, seed=0))
+    elapsed = time.monotonic() - t0
+    assert not res.solved and res.path is None
+    assert res.status in (PlanStatus.TIMEOUT, PlanStatus.FAILED)
+    assert "leg start -> goal" in res.reason and ("time budget" in res.reason or "exhausted" in res.reason)
+    assert elapsed < budget + 1.0
+
+
+WALL = """<mujoco model="wall"><worldbody>
+  <geom name="ground" type="plane" size="3 3 0.05"/>
+  <geom name="sheet" type="box" pos="0 0 1.0" size="0.002 1.0 1.0"/>
+</worldbody></mujoco>"""
+
+
+def test_that_the_motion_validator_never_skips_a_thin_obstacle(robot, tmp_path):
+    """A 4 mm sheet between two legal postures: the straight motion through it is illegal."""
+    scene = tmp_path / "wall.xml"
+    scene.write_text(WALL)
+    checker = ValidityChecker(robot, scene)
+    space = PostureSpace.for_robot(robot)
+    x = np.concatenate([[-0.4, 0.0, 0.6], robot.stand_qpos[3:7], robot.stand_qpos[7:]])
+    y = x.copy()
+    y[0] = 0.4
+    v = MotionValidator(checker, space)
+    assert v.state_valid(x) and v.state_valid(y)
+    assert not v.segment_valid(x, y)
+    rep = v.first_invalid(x, y)
+    assert not rep.valid and rep.report is not None and rep.report.obstacle_collision
+
+
+def test_that_rrt_blossom_marks_blocked_expansions_dead_and_keeps_searching(robot, tmp_path, problems):
+    """Inside the cage the trees fill the box: expansions into walls die, regressions go dormant."""
+    scene = tmp_path / "cage.xml"
+    scene.write_text(CAGE)
+    cage = ValidityChecker(robot, scene)
+    space = PostureSpace.for_robot(robot)
+    start = problems[0].start.with_root(np.array([0.0, 0.0, problems[0].start.root_pos[2]]))
+    goal = align_to_start(fallback_connecting_posture(robot), start, cage, xy=np.array([1.0, 0.0]))
+    out = rrt_blossom(space.state(start), space.state(goal), MotionValidator(cage, space), np.random.default_rng(0), time.monotonic() + 1.5)
+    assert out.path is None and out.timed_out
+    assert out.stats["nodes_start"] > 10
+    assert out.stats["dead_start"] + out.stats["dormant_start"] > 0
+
+
+def test_that_a_posture_of_another_robot_is_an_input_error(robot, flat, problems):
+    wrong = Posture("other", problems[0].start.root_pos, problems[0].start.root_quat_wxyz, problems[0].start.joints)
+    with pytest.raises(PostureError, match="robot 'other'"):
+        RRTBlossomPlanner()(PlanningProblem(wrong, problems[0].goal, flat, budget_s=1.0))
+
+
+def test_that_every_public_name_of_the_planning_modules_resolves():
+    import importlib
+
+    for mod in ("space", "motion_validator", "rrt_blossom", "refine", "smoothing", "timing", "to_trajectory", "bench_problems"):
+        m = importlib.import_module(f"robot_rise.planning.{mod}")
+        for name in m.__all__:
+            assert hasattr(m, name), f"robot_rise.planning.{mod}.{name}"

@@ -1,0 +1,64 @@
+"""Time parameterisation within servo velocity and acceleration limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robot_rise.model import load_robot
+from robot_rise.planning.problem import PostureSequence
+from robot_rise.planning.timing import TimingLimits, measured_rates, time_parameterize
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot()
+
+
+def _seq(robot, joints: np.ndarray, z: np.ndarray | None = None) -> PostureSequence:
+    k = len(joints)
+    pos = np.zeros((k, 3))
+    pos[:, 2] = 0.3 if z is None else z
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
+    return PostureSequence(robot.name, robot.joint_names, pos, quat, joints)
+
+
+def test_that_the_velocity_limits_come_from_the_servo_no_load_speed(robot):
+    lim = TimingLimits.from_robot(robot, speed_fraction=0.5)
+    expected = np.array([s.no_load_speed_rad_s for s in robot.servo_specs()]) * 0.5
+    np.testing.assert_allclose(lim.joint_velocity_rad_s, expected)
+
+
+def test_that_a_timed_path_keeps_every_limit_and_its_end_postures(robot):
+    rng = np.random.default_rng(0)
+    joints = np.cumsum(rng.uniform(-0.2, 0.2, (12, robot.n_joints)), axis=0)
+    joints = np.clip(joints, robot.joint_lower, robot.joint_upper)
+    seq = _seq(robot, joints, np.linspace(0.1, 0.25, 12))
+    tp = time_parameterize(seq, robot)
+    lim = TimingLimits.from_robot(robot)
+    vr, ar = measured_rates(tp.t, tp.root, tp.joints, lim)
+    assert vr <= 1.0 + 1e-6 and ar <= 1.0 + 1e-6
+    assert tp.t[0] == 0.0 and np.all(np.diff(tp.t) > 0)
+    np.testing.assert_allclose(tp.joints[0], joints[0], atol=1e-9)
+    np.testing.assert_allclose(tp.joints[-1], joints[-1], atol=1e-9)
+    np.testing.assert_allclose(tp.root[-1, :3], seq.root_pos[-1], atol=1e-9)
+
+
+def test_that_a_single_joint_move_follows_a_trapezoidal_profile(robot):
+    d = 1.0
+    joints = np.zeros((2, robot.n_joints))
+    joints[1, 3] = d
+    lim = TimingLimits(np.full(robot.n_joints, 2.0), np.full(robot.n_joints, 8.0))
+    tp = time_parameterize(_seq(robot, joints), robot, limits=lim, sample_period_s=0.01)
+    v, a = 2.0, 8.0
+    trapezoid = d / v + v / a  # accelerate to v, cruise, decelerate: 0.75 s
+    assert tp.duration_s == pytest.approx(trapezoid, rel=0.05)
+    constant_speed_floor = d / v  # the paper's constant-speed profile, ignoring acceleration
+    assert tp.duration_s > constant_speed_floor
+    vel = np.diff(tp.joints[:, 3]) / np.diff(tp.t)
+    assert vel.max() == pytest.approx(v, rel=0.02)
+
+
+def test_that_a_single_posture_gives_a_single_row(robot):
+    tp = time_parameterize(_seq(robot, np.zeros((1, robot.n_joints))), robot)
+    assert tp.t.tolist() == [0.0] and tp.joints.shape == (1, robot.n_joints)
