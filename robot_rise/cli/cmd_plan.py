@@ -33,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--key", metavar="KEY.json", help="a key posture to pass through")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS", help="planning time budget (default: 30)")
+    p.add_argument("--planner", choices=["rrt-blossom", "energy"], default="rrt-blossom",
+                   help="rrt-blossom (paper 000, default) or energy (paper 004, local, no random search)")
     p.add_argument("--no-smooth", action="store_true", help="keep the planner's polyline (no shortcut/B-spline)")
     p.add_argument("--out", required=True, metavar="TRAJ.json", help="trajectory file to write")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -41,17 +43,25 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _select_goal(start, checker: ValidityChecker):  # noqa: ANN001, ANN202 - thin CLI glue
-    try:
-        from robot_rise import library  # type: ignore[attr-defined]
-    except ImportError:
-        library = None
-    select = getattr(library, "select_connecting_posture", None) if library is not None else None
-    if select is None:
-        raise RobotRiseError(
-            "no connecting posture: the motion library (robot_rise/library.py) is not available yet",
-            hint="pass --to POSTURE.json",
-        )
-    return select(start, checker.robot)
+    """The nearest library frame (paper 000 section 4.1), placed where the robot lies."""
+    from robot_rise.library import load_library
+    from robot_rise.rise import connecting_posture, connection_candidates
+
+    robot = checker.robot
+    library = load_library(robot_name=robot.library)
+    conn = connection_candidates(library, robot, start, 1)[0]
+    print(f"connecting posture: {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})", file=sys.stderr)
+    return connecting_posture(library, robot, conn, start, checker)
+
+
+def _planner(name: str):  # noqa: ANN202
+    if name == "energy":
+        from robot_rise.planning.energy import EnergyPlanner
+
+        return EnergyPlanner()
+    from robot_rise.planning.refine import RRTBlossomPlanner
+
+    return RRTBlossomPlanner()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     goal = read_posture(args.goal, robot) if args.goal else _select_goal(start, checker)
     key = read_posture(args.key, robot) if args.key else None
     problem = PlanningProblem(start, goal, checker, key=key, budget_s=args.budget, seed=args.seed)
-    out = plan_trajectory(problem, smooth=not args.no_smooth)
+    out = plan_trajectory(problem, planner=_planner(args.planner), smooth=not args.no_smooth)
     res = out.result
     if out.trajectory is None:
         if args.json:

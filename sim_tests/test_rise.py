@@ -1,0 +1,93 @@
+"""End to end: lying posture -> rise -> proven trajectory; check catches tampering."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from robot_rise.cli import main
+from robot_rise.filter import prove
+from robot_rise.library import load_library
+from robot_rise.posture import posture_to_dict, write_posture
+from robot_rise.rise import rise
+from robot_rise.sampling import sample_lying_postures
+from robot_rise.trajectory import Trajectory, read_trajectory, write_trajectory
+
+
+def _kinds_in_library(robot) -> set[str]:
+    return {m.lying for m in load_library(robot_name=robot.library).motions}
+
+
+@pytest.mark.parametrize("kind", ["prone", "supine", "left", "right"])
+def test_rise_from_a_random_lying_posture_is_proven_and_starts_where_the_robot_lies(robot, kind):
+    if kind not in _kinds_in_library(robot):
+        pytest.skip(f"the library has no {kind} motion")
+    posture = sample_lying_postures(robot, kind, 1, seed=21).postures[0]
+    result = rise(robot, posture, budget_s=30)
+    assert result.ok, result.reason
+    tr = result.trajectory
+    assert posture_to_dict(tr.start) == posture_to_dict(posture)
+    assert np.allclose(tr.q[0], posture.joint_vector(tr.joint_names), atol=1e-6)
+    assert tr.report["proven"] is True and tr.report["robot"] == robot.name
+    assert tr.report["peak_torque_ratio"] <= 0.9
+    _, verdict, again = prove(robot, tr)
+    assert again["proven"] and verdict.standing
+
+
+@pytest.fixture(scope="module")
+def proven_library_motion(robot, tmp_path_factory):
+    motion = load_library(robot_name=robot.library).motions[0]
+    tr = motion.trajectory
+    path = tmp_path_factory.mktemp("check") / "motion.json"
+    write_trajectory(path, Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, motion.start, {}, tr.root))
+    return path
+
+
+def test_check_passes_a_library_motion(proven_library_motion, capsys):
+    assert main(["check", str(proven_library_motion)]) == 0
+    assert "PROVEN" in capsys.readouterr().out
+
+
+def test_check_fails_when_a_joint_target_jumps(robot, proven_library_motion, tmp_path, capsys):
+    tr = read_trajectory(proven_library_motion)
+    q = tr.q.copy()
+    k = len(q) * 3 // 4
+    j = robot.joint_index("l_knee")
+    q[k:k + 5, j] = robot.joint_lower[j]  # the knee snaps straight mid-motion
+    bad = tmp_path / "jump.json"
+    write_trajectory(bad, Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, {}, tr.root))
+    assert main(["check", str(bad)]) == 1
+    assert "NOT PROVEN" in capsys.readouterr().out
+
+
+def test_check_fails_when_a_segment_is_sped_up_three_times(robot, proven_library_motion, tmp_path, capsys):
+    tr = read_trajectory(proven_library_motion)
+    t = tr.t.copy()
+    a, b = len(t) // 4, len(t) * 3 // 4
+    dt = np.diff(t)
+    dt[a:b] /= 3.0
+    fast = tmp_path / "fast.json"
+    write_trajectory(fast, Trajectory(tr.robot, tr.joint_names, np.concatenate([[0.0], np.cumsum(dt)]), tr.q, tr.start, {}, None))
+    assert main(["check", str(fast)]) == 1
+    assert "NOT PROVEN" in capsys.readouterr().out
+
+
+def test_rise_rejects_bad_input_files_with_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "robot-rise/posture@1", "robot": "op3"}))
+    assert main(["rise", "--from", str(bad), "--out", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "Traceback" not in err
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_rise_refuses_a_start_posture_inside_the_ground(robot, tmp_path, capsys):
+    p = sample_lying_postures(robot, "prone", 1, seed=3).postures[0]
+    sunk = p.with_root(p.root_pos - np.array([0, 0, 0.03]))
+    path = tmp_path / "sunk.json"
+    write_posture(path, sunk)
+    assert main(["rise", "--from", str(path), "--out", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err
+    assert "not valid in scene flat" in err and "ground collision" in err
