@@ -14,9 +14,10 @@ and a best-first search prunes a node when d(query, centre) - radius cannot beat
 found so far (triangle inequality). The answer is therefore always the brute-force answer; the
 tree only saves distance evaluations.
 
-Branching factor (ours): N = 8 with leaves of at most 24 frames. The paper's N = 50 suits a
-database of tens of thousands of frames; ours holds a few thousand, and a shallow tree with small
-leaves keeps the number of nodes visited (and Python overhead per node) low.
+Branching factor: N = 50 as in the paper, leaves of at most 40 frames. Measured over N in
+{8, 12, 20, 30, 40, 50} (robot_rise/BENCHMARKS_library.md): with under two thousand frames a wide,
+shallow tree (depth 3) is fastest, because each level is searched with one vectorised call and the
+per-call overhead, not the number of distances, dominates in Python.
 """
 
 from __future__ import annotations
@@ -25,7 +26,9 @@ import json
 import logging
 import os
 import time
+import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -49,14 +52,16 @@ __all__ = [
     "KMeansTree",
     "TREE_BRANCHING",
     "TREE_LEAF_SIZE",
+    "select_connecting_posture",
+    "connection_posture",
 ]
 
 log = logging.getLogger(__name__)
 
 LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
-TREE_BRANCHING = 8  # N of the N-ary K-means tree (paper 000 section 4.1 uses 50; see module docstring)
-TREE_LEAF_SIZE = 24  # a node with at most this many frames is a leaf (ours)
+TREE_BRANCHING = 50  # N of the N-ary K-means tree: paper 000 section 4.1 uses 50 (see module docstring)
+TREE_LEAF_SIZE = 40  # a node with at most this many frames is a leaf (ours, measured)
 _QUAT_Z = np.array([0.0, 0.0, 0.0, 1.0])
 
 
@@ -282,6 +287,8 @@ class _Node:
     radius: float  # max metric distance from the centre to any member
     members: np.ndarray  # frame indices (leaves only; empty for inner nodes)
     children: tuple[_Node, ...]
+    child_centres: np.ndarray  # centre frame of each child, shape (len(children),)
+    child_radii: np.ndarray  # covering radius of each child, shape (len(children),)
 
 
 class KMeansTree:
@@ -304,47 +311,62 @@ class KMeansTree:
         f = self._features[rows]
         centre = int(rows[int(np.argmin(np.sum((f - f.mean(axis=0)) ** 2, axis=1)))])
         radius = float(self.index.pairwise(centre, rows).max())
-        return _Node(centre, radius, members, children)
+        cc = np.array([c.centre for c in children], dtype=int)
+        cr = np.array([c.radius for c in children], dtype=float)
+        return _Node(centre, radius, members, children, cc, cr)
 
     def _build(self, rows: np.ndarray) -> _Node:
         if rows.size <= self.leaf_size:
             return self._make_node(rows, (), rows)
         k = min(self.branching, rows.size)
         seed = int(self._rng.integers(2**31 - 1))
-        _, labels = kmeans2(self._features[rows], k, minit="++", seed=seed)
+        with warnings.catch_warnings():  # empty clusters are dropped below
+            warnings.simplefilter("ignore")
+            _, labels = kmeans2(self._features[rows], k, minit="++", seed=seed)
         groups = [rows[labels == g] for g in range(k) if np.any(labels == g)]
         if len(groups) < 2:  # identical frames: split arbitrarily
             groups = list(np.array_split(rows, 2))
         return self._make_node(rows, tuple(self._build(g) for g in groups), np.empty(0, dtype=int))
 
     def query(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> Connection:
-        """Nearest frame (exact: equal to :meth:`FrameIndex.brute_force` up to ties)."""
+        """Nearest frame (exact: equal to :meth:`FrameIndex.brute_force` up to ties).
+
+        Level-synchronous branch and bound: per level, the centres of all live nodes' children are
+        evaluated in one vectorised call (each centre is a frame, so it also improves the best
+        answer), children whose bound d(query, centre) - radius cannot beat the best are dropped,
+        the surviving leaves are evaluated in one call, and the surviving inner nodes form the next
+        level. Few numpy calls per query, whatever the number of nodes visited.
+        """
         idx = self.index
         q, jw = idx.query_features(quat_wxyz, joints)
         best_d, best_i, evals = np.inf, -1, 0
-        stack: list[tuple[float, _Node]] = [(0.0, self.root)]
-        while stack:
-            bound, node = stack.pop()
-            if bound >= best_d:
-                continue
-            if node.members.size:
-                d = idx.distances(q, jw, node.members)
-                evals += node.members.size
-                j = int(np.argmin(d))
-                if d[j] < best_d:
-                    best_d, best_i = float(d[j]), int(node.members[j])
-                continue
-            centres = np.array([c.centre for c in node.children])
+        frontier = [self.root]
+        while frontier:
+            kids = [c for n in frontier for c in n.children]
+            if not kids:
+                break
+            centres = np.concatenate([n.child_centres for n in frontier])
+            radii = np.concatenate([n.child_radii for n in frontier])
             dc = idx.distances(q, jw, centres)
             evals += centres.size
             j = int(np.argmin(dc))
             if dc[j] < best_d:
                 best_d, best_i = float(dc[j]), int(centres[j])
-            lower = dc - np.array([c.radius for c in node.children])
-            # push farthest first so the nearest child is searched next (best-first, depth-first)
-            for c in np.argsort(-lower):
-                if lower[c] < best_d:
-                    stack.append((float(lower[c]), node.children[c]))
+            live = np.flatnonzero(dc - radii < best_d)
+            leaves = [kids[k] for k in live if kids[k].members.size]
+            if leaves:
+                rows = np.concatenate([n.members for n in leaves])
+                d = idx.distances(q, jw, rows)
+                evals += rows.size
+                j = int(np.argmin(d))
+                if d[j] < best_d:
+                    best_d, best_i = float(d[j]), int(rows[j])
+            frontier = [kids[k] for k in live if not kids[k].members.size and dc[k] - radii[k] < best_d]
+        if self.root.members.size:  # the whole index is one leaf
+            d = idx.distances(q, jw, self.root.members)
+            evals += d.size
+            j = int(np.argmin(d))
+            best_d, best_i = float(d[j]), int(self.root.members[j])
         return idx._connection(best_i, best_d, evals)
 
     def depth(self) -> int:
@@ -352,3 +374,49 @@ class KMeansTree:
             return 1 + max((_d(c) for c in n.children), default=0)
 
         return _d(self.root)
+
+
+@lru_cache(maxsize=4)
+def _cached_tree(directory: str, robot_dir: str) -> tuple[MotionLibrary, KMeansTree, object]:
+    from robot_rise.model import load_robot
+    from robot_rise.validity import ValidityChecker
+
+    robot = load_robot(robot_dir)
+    lib = load_library(directory, robot_name=robot.name)
+    return lib, KMeansTree(lib.frame_index(robot)), ValidityChecker(robot, None)
+
+
+def connection_posture(library: MotionLibrary, robot: Robot, connection: Connection, start: Posture) -> Posture:
+    """The frame of ``connection`` as a posture, turned about world z to face like ``start`` and
+    moved over it (x, y of ``start``, height of the frame)."""
+    motion = library.get(connection.motion)
+    tr = motion.trajectory
+    if tr.root is None:
+        raise FormatError(f"motion {motion.name}: no 'root' pose per row")
+    root = np.asarray(tr.root[connection.frame], dtype=float)
+    q2 = root[3:] / np.linalg.norm(root[3:])
+    q1 = np.asarray(start.root_quat_wxyz, dtype=float)
+    a, b = float(q1 @ q2), float(q1 @ quat_multiply(_QUAT_Z, q2))
+    n = float(np.hypot(a, b))
+    turn = np.array([a / n, 0.0, 0.0, b / n]) if n > 1e-12 else np.array([1.0, 0.0, 0.0, 0.0])
+    quat = quat_multiply(turn, q2)
+    cols = [tr.joint_names.index(j) for j in robot.joint_names]
+    joints = dict(zip(robot.joint_names, (float(x) for x in tr.q[connection.frame, cols])))
+    return Posture(robot.name, np.array([start.root_pos[0], start.root_pos[1], root[2]]), quat, joints)
+
+
+def select_connecting_posture(start: Posture, robot: Robot, *, directory: str | os.PathLike[str] | None = None) -> Posture:
+    """Connecting posture for a lying posture (paper 000 section 4.1): the nearest library frame
+    of a lying-to-squatting phase, turned and placed where the robot lies.
+
+    The library and its K-means tree are built once per (library, robot) directory pair. The
+    simulated frame sinks a few millimetres into the soft contact; the returned posture is lifted
+    so that its lowest point rests exactly on z = 0 (flat ground).
+    """
+    lib_dir = str(Path(directory) if directory is not None else default_library_dir(robot.name))
+    lib, tree, checker = _cached_tree(lib_dir, str(robot.directory))
+    conn = tree.query(start.root_quat_wxyz, start.joint_vector(robot.joint_names))
+    log.info("connecting posture: %s frame %d (t = %.2f s), distance %.3f", conn.motion, conn.frame, conn.time_s, conn.distance)
+    goal = connection_posture(lib, robot, conn, start)
+    low = checker.lowest_point_z(checker.qpos_of(goal))  # type: ignore[attr-defined]
+    return goal.with_root(root_pos=goal.root_pos - np.array([0.0, 0.0, low]))

@@ -1,0 +1,92 @@
+"""``robot-rise library list|show|play NAME|bench``: inspect, replay and benchmark the motion library."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from robot_rise.cli import EXIT_FAILURE, EXIT_OK
+
+__all__ = ["register"]
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "library",
+        help="inspect, replay and benchmark the get-up motion library",
+        epilog="Example: robot-rise library play prone_knees_first --friction 0.5 --mass 1.1",
+    )
+    p.add_argument("--dir", type=Path, default=None, help="library directory (default: configs/motions/<robot>)")
+    p.add_argument("--robot", type=Path, default=None, help="robot directory (default: the embedded OP3-class robot)")
+    sub = p.add_subparsers(dest="library_command", metavar="ACTION", required=True)
+    sub.add_parser("list", help="one line per motion").set_defaults(func=_list)
+    s = sub.add_parser("show", help="details of one motion")
+    s.add_argument("name")
+    s.set_defaults(func=_show)
+    pl = sub.add_parser("play", help="play a motion through the servo model and print the judge's verdict")
+    pl.add_argument("name")
+    pl.add_argument("--scene", default="flat", help="scene name or MJCF path (default: flat)")
+    pl.add_argument("--friction", type=float, default=1.0, help="friction scale (default 1.0)")
+    pl.add_argument("--mass", type=float, default=1.0, help="link mass scale (default 1.0)")
+    pl.set_defaults(func=_play)
+    b = sub.add_parser("bench", help="connecting-posture selection: K-means tree vs brute force")
+    b.add_argument("--n", type=int, default=1000, help="random lying postures (default 1000)")
+    b.add_argument("--seed", type=int, default=0)
+    b.set_defaults(func=_bench)
+
+
+def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from robot_rise.library import load_library
+    from robot_rise.model import load_robot
+
+    robot = load_robot(args.robot)
+    return robot, load_library(args.dir, robot_name=robot.name)
+
+
+def _list(args: argparse.Namespace) -> int:
+    _, lib = _load(args)
+    print(f"{'name':24s} {'lying':7s} {'duration':>9s} {'peak':>5s}  strategy")
+    for m in lib.motions:
+        peak = m.trajectory.report.get("peak_envelope_ratio")
+        peak_s = f"{peak:.2f}" if isinstance(peak, (int, float)) else "-"
+        print(f"{m.name:24s} {m.lying:7s} {m.duration_s:8.2f}s {peak_s:>5s}  {m.strategy}")
+    return EXIT_OK
+
+
+def _show(args: argparse.Namespace) -> int:
+    _, lib = _load(args)
+    m = lib.get(args.name)
+    tr = m.trajectory
+    print(f"name:            {m.name}")
+    print(f"lying:           {m.lying}")
+    print(f"strategy:        {m.strategy}")
+    print(f"duration:        {m.duration_s:.3f} s, {len(tr.t)} rows")
+    print(f"connect until:   {m.connect_until_s:.3f} s (lying-to-squatting phase indexed for selection)")
+    print(f"start root:      pos {[round(float(x), 4) for x in m.start.root_pos]}, quat {[round(float(x), 4) for x in m.start.root_quat_wxyz]}")
+    for k in ("verdict", "keyframe_times_s"):
+        if k in tr.report:
+            print(f"{k + ':':17s}{tr.report[k]}")
+    return EXIT_OK
+
+
+def _play(args: argparse.Namespace) -> int:
+    from robot_rise.judge import judge
+    from robot_rise.sim import Player
+
+    robot, lib = _load(args)
+    m = lib.get(args.name)
+    player = Player(robot, args.scene, friction_scale=args.friction, mass_scale=args.mass)
+    rec = player.play(m.trajectory, m.start)
+    v = judge(rec)
+    print(f"{m.name}: {v.summary()}")
+    print(f"duration {m.duration_s:.2f} s, played in {rec.wall_time_s:.2f} s wall")
+    return EXIT_OK if v.standing and v.peak_envelope_ratio <= 0.9 and not v.self_collision else EXIT_FAILURE
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from robot_rise.bench_library import bench_selection
+
+    robot, lib = _load(args)
+    result = bench_selection(robot, lib, n=args.n, seed=args.seed)
+    print(result.markdown())
+    return EXIT_OK if result.agreement >= 0.99 else EXIT_FAILURE

@@ -1,0 +1,127 @@
+"""The motion library: files, every motion stands through the servo model, selection tree vs brute force."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robot_rise.library as library_mod
+from robot_rise.bench_library import random_lying_postures
+from robot_rise.errors import FormatError
+from robot_rise.judge import judge
+from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library
+from robot_rise.library_authoring import ROBUST_FRICTION, ROBUST_MASS
+from robot_rise.model import load_robot
+from robot_rise.posture import PostureDistance
+from robot_rise.sim import Player
+
+TORQUE_BOUND = 0.9  # issue 4: peak torque <= 90 % of the envelope at every instant
+STOCK_FRONT_S, STOCK_BACK_S = 3.0, 3.6  # stock OP3 get-up durations (facts/op3.md)
+
+ROBOT = load_robot()
+LIBRARY = load_library()
+NAMES = LIBRARY.names()
+
+
+def test_every_name_in_all_resolves() -> None:
+    for name in library_mod.__all__:
+        assert hasattr(library_mod, name), name
+
+
+def test_library_index_names_motions_with_trajectories_that_start_at_their_start_posture() -> None:
+    assert len(LIBRARY.motions) >= 3
+    for m in LIBRARY.motions:
+        assert m.trajectory.joint_names == ROBOT.joint_names
+        assert np.allclose(m.trajectory.q[0], m.start.joint_vector(ROBOT.joint_names), atol=1e-5)
+        assert m.trajectory.root is not None and m.trajectory.root.shape == (len(m.trajectory.t), 7)
+
+
+def test_library_covers_prone_with_at_least_two_strategies() -> None:
+    assert sum(m.lying == "prone" for m in LIBRARY.motions) >= 2
+
+
+def test_an_index_with_a_wrong_format_string_is_rejected(tmp_path: Path) -> None:
+    shutil.copytree(default_library_dir(), tmp_path / "lib")
+    idx = tmp_path / "lib" / "index.json"
+    obj = json.loads(idx.read_text())
+    obj["format"] = "robot-rise/motion-library@0"
+    idx.write_text(json.dumps(obj))
+    with pytest.raises(FormatError, match="motion-library@1"):
+        load_library(tmp_path / "lib")
+
+
+def test_an_unknown_motion_name_lists_the_library() -> None:
+    with pytest.raises(FormatError, match=NAMES[0]):
+        LIBRARY.get("no_such_motion")
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_motion_stands_the_robot_up_within_the_torque_bound_without_self_collision(name: str) -> None:
+    m = LIBRARY.get(name)
+    v = judge(Player(ROBOT, "flat").play(m.trajectory, m.start))
+    assert v.standing, v.reason
+    assert v.peak_envelope_ratio <= TORQUE_BOUND
+    assert not v.self_collision
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("friction", [ROBUST_FRICTION[0], ROBUST_FRICTION[-1]])
+@pytest.mark.parametrize("mass", [ROBUST_MASS[0], ROBUST_MASS[-1]])
+def test_motion_stands_with_friction_and_mass_variations(name: str, friction: float, mass: float) -> None:
+    m = LIBRARY.get(name)
+    v = judge(Player(ROBOT, "flat", friction_scale=friction, mass_scale=mass).play(m.trajectory, m.start))
+    assert v.standing, v.reason
+    assert v.peak_envelope_ratio <= TORQUE_BOUND
+    assert not v.self_collision
+
+
+def test_frame_index_distance_equals_the_posture_metric() -> None:
+    index = FrameIndex.build(LIBRARY, ROBOT)
+    metric = PostureDistance.for_robot(ROBOT)
+    quats, joints = random_lying_postures(ROBOT, 5, seed=3)
+    rows = np.arange(0, index.size, max(1, index.size // 50))
+    for q, j in zip(quats, joints):
+        fq, fj = index.query_features(q, j)
+        frame_joints = index.joints_w[rows] / index.sqrt_w
+        expected = metric(index.quat[rows], frame_joints, q, j)
+        assert index.distances(fq, fj, rows) == pytest.approx(expected, abs=1e-9)
+
+
+def test_tree_selection_agrees_with_brute_force_on_random_lying_postures() -> None:
+    index = FrameIndex.build(LIBRARY, ROBOT)
+    tree = KMeansTree(index, seed=0)
+    quats, joints = random_lying_postures(ROBOT, 300, seed=1)
+    same = 0
+    fewer = 0
+    for q, j in zip(quats, joints):
+        a, b = index.brute_force(q, j), tree.query(q, j)
+        same += (a.motion, a.frame) == (b.motion, b.frame) or abs(a.distance - b.distance) <= 1e-12
+        fewer += b.evaluations < index.size
+    assert same / len(quats) >= 0.99
+    assert fewer > 0  # the tree prunes at least sometimes
+
+
+def test_connection_for_a_library_frame_is_that_frame() -> None:
+    index = FrameIndex.build(LIBRARY, ROBOT)
+    tree = KMeansTree(index, seed=0)
+    i = index.size // 2
+    c = tree.query(index.quat[i], index.joints_w[i] / index.sqrt_w)
+    assert c.distance == pytest.approx(0.0, abs=1e-6)
+
+
+def test_selected_connecting_posture_faces_like_the_lying_robot_and_is_a_library_frame() -> None:
+    from robot_rise.library import select_connecting_posture
+    from robot_rise.posture import yaw_aligned_orientation_distance
+
+    m = LIBRARY.motions[0]
+    start = m.start
+    goal = select_connecting_posture(start, ROBOT)
+    assert goal.robot == ROBOT.name
+    assert goal.root_pos[:2] == pytest.approx(start.root_pos[:2])
+    # the library's own start posture connects to (nearly) itself
+    assert float(yaw_aligned_orientation_distance(goal.root_quat_wxyz, start.root_quat_wxyz)) < 0.05
