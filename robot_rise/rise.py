@@ -19,7 +19,7 @@ import numpy as np
 
 from robot_rise.errors import PostureError
 from robot_rise.filter import FilterResult, FilterSettings, dynamics_filter, join_with_blend
-from robot_rise.library import Connection, KMeansTree, MotionLibrary, load_library
+from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
 from robot_rise.planning.bench_problems import align_to_start
 from robot_rise.planning.problem import PlanningProblem
@@ -28,7 +28,7 @@ from robot_rise.posture import Posture, validate_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["RiseAttempt", "RiseResult", "rise", "connection_candidates", "connecting_posture"]
+__all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture"]
 
 log = logging.getLogger(__name__)
 
@@ -67,15 +67,39 @@ class RiseResult:
     filter_result: FilterResult | None = None
 
 
-def connection_candidates(library: MotionLibrary, robot: Robot, start: Posture, k: int) -> list[Connection]:
+@dataclass
+class RiseContext:
+    """What every rise of one robot in one scene reuses: checker, library, frame index, K-means tree.
+
+    Build it once (``RiseContext.build``) when rising many times; ``rise`` builds one otherwise.
+    """
+
+    robot: Robot
+    scene: str | os.PathLike[str] | None
+    checker: ValidityChecker
+    library: MotionLibrary
+    index: FrameIndex
+    tree: KMeansTree
+
+    @classmethod
+    def build(cls, robot: Robot, scene: str | os.PathLike[str] | None = "flat", library: MotionLibrary | None = None) -> RiseContext:
+        library = library or load_library(robot_name=robot.library)
+        index = library.frame_index(robot)
+        return cls(robot, scene, ValidityChecker(robot, scene), library, index, KMeansTree(index))
+
+
+def connection_candidates(
+    library: MotionLibrary, robot: Robot, start: Posture, k: int, *, index: FrameIndex | None = None, tree: KMeansTree | None = None
+) -> list[Connection]:
     """The nearest frame of the ``k`` nearest motions (paper 000 eq. 1), nearest first.
 
     The very nearest comes from the K-means tree (paper 000 section 4.1); the runners-up per
     motion from the same frame index.
     """
-    index = library.frame_index(robot)
+    index = index or library.frame_index(robot)
+    tree = tree or KMeansTree(index)
     joints = start.joint_vector(robot.joint_names)
-    best = KMeansTree(index).query(start.root_quat_wxyz, joints)
+    best = tree.query(start.root_quat_wxyz, joints)
     q, jw = index.query_features(start.root_quat_wxyz, joints)
     d = index.distances(q, jw)
     out = [best]
@@ -91,13 +115,51 @@ def connection_candidates(library: MotionLibrary, robot: Robot, start: Posture, 
 
 
 def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connection, start: Posture, checker: ValidityChecker) -> Posture:
-    """The connecting posture of a connection, turned and placed where the robot lies."""
+    """The connecting posture of a connection, turned and placed where the robot lies.
+
+    It is placed at the start's position and facing; when that placement collides with an
+    obstacle, nearby placements are tried (rings of PLACEMENT_STEP_M up to PLACEMENT_MAX_M, and
+    small turns), nearest first. The planner then plans the root there (paper 000 section
+    4.2.1 plans the root position when the postures differ in it); the dynamics filter decides
+    whether the robot can really get there.
+    """
     motion = library.get(connection.motion)
     tr = motion.trajectory
     cols = [tr.joint_names.index(j) for j in robot.joint_names]
     root = tr.root[connection.frame] if tr.root is not None else np.concatenate([motion.start.root_pos, motion.start.root_quat_wxyz])
     goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, tr.q[connection.frame, cols])))
-    return align_to_start(goal, start, checker)
+    # Rest it at the height the robot lies at (the floor, a bed, a slope under the start).
+    floor_z = checker.lowest_point_z(checker.qpos_of(start))
+    placed = _place(goal, start, checker, start.root_pos[:2], floor_z)
+    for offset in [np.zeros(2), *_placements()]:
+        base = _place(goal, start, checker, start.root_pos[:2] + offset, floor_z)
+        for dz in PLACEMENT_LIFTS_M:  # resting on something higher (a bed) under part of the body
+            candidate = base.with_root(base.root_pos + np.array([0.0, 0.0, dz]))
+            if checker.is_valid(candidate):
+                return candidate
+    return placed  # the planner reports why it is invalid
+
+
+def _place(goal: Posture, start: Posture, checker: ValidityChecker, xy: np.ndarray, floor_z: float) -> Posture:
+    """``goal`` turned to the start's facing, at ``xy``, its lowest point at ``floor_z``."""
+    g = align_to_start(goal, start, checker, xy=xy)  # facing and xy (rests it on z = 0)
+    low = checker.lowest_point_z(checker.qpos_of(g))
+    return g.with_root(g.root_pos + np.array([0.0, 0.0, floor_z - low]))
+
+
+PLACEMENT_STEP_M = 0.05  # rings of candidate placements around the start [m]
+PLACEMENT_MAX_M = 0.25
+PLACEMENT_LIFTS_M = (0.0, 0.02, 0.04, 0.06, 0.08)  # candidate heights above the start's floor [m]
+
+
+def _placements() -> list[np.ndarray]:
+    out = []
+    r = PLACEMENT_STEP_M
+    while r <= PLACEMENT_MAX_M + 1e-9:
+        for a in np.linspace(0, 2 * np.pi, 8, endpoint=False):
+            out.append(r * np.array([np.cos(a), np.sin(a)]))
+        r += PLACEMENT_STEP_M
+    return out
 
 
 def rise(
@@ -112,6 +174,7 @@ def rise(
     candidates: int = DEFAULT_CANDIDATES,
     settings: FilterSettings = FilterSettings(),
     progress: Callable[[str], None] | None = None,
+    context: RiseContext | None = None,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -126,13 +189,16 @@ def rise(
         candidates: how many library motions to try, nearest first.
         settings: dynamics filter settings.
         progress: called with a short stage description.
+        context: prebuilt checker/library/index for this robot and scene (reuse across rises).
 
     Raises:
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
     """
     say = progress or (lambda s: None)
     validate_posture(start, robot, where="start posture")
-    checker = ValidityChecker(robot, scene)
+    if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
+        context = RiseContext.build(robot, scene, library)
+    checker = context.checker
     report = checker.check(start)
     if not report.valid:
         raise PostureError(
@@ -143,10 +209,10 @@ def rise(
         validate_posture(key, robot, where="key posture")
         if not checker.is_valid(key):
             raise PostureError(f"key posture is not valid in scene {scene}: {'; '.join(checker.check(key).reasons()[:3])}")
-    library = library or load_library(robot_name=robot.library)
+    library = context.library
     attempts: list[RiseAttempt] = []
     best_unproven: FilterResult | None = None
-    for conn in connection_candidates(library, robot, key or start, candidates):
+    for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree):
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         goal = connecting_posture(library, robot, conn, key or start, checker)
