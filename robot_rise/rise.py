@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError
-from robot_rise.filter import FilterResult, FilterSettings, dynamics_filter, join_with_blend
+from robot_rise.filter import FilterResult, FilterSettings, dynamics_filter, join_with_blend, prove
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
 from robot_rise.planning.bench_problems import align_to_start
@@ -26,6 +26,7 @@ from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import Posture, validate_posture
 from robot_rise.trajectory import Trajectory
+from robot_rise.sampling import classify_lying
 from robot_rise.validity import ValidityChecker
 
 __all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture"]
@@ -33,6 +34,9 @@ __all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candi
 log = logging.getLogger(__name__)
 
 DEFAULT_CANDIDATES = 3  # library motions tried, nearest first
+DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
+RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
+RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 
 
 @dataclass(frozen=True)
@@ -175,6 +179,7 @@ def rise(
     settings: FilterSettings = FilterSettings(),
     progress: Callable[[str], None] | None = None,
     context: RiseContext | None = None,
+    retries: int = DEFAULT_RETRIES,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -190,6 +195,8 @@ def rise(
         settings: dynamics filter settings.
         progress: called with a short stage description.
         context: prebuilt checker/library/index for this robot and scene (reuse across rises).
+        retries: when every candidate fails but the robot ends lying at rest, rise again from
+            there this many times (the combined motion is proven from the original start).
 
     Raises:
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
@@ -248,7 +255,65 @@ def rise(
         if best_unproven is None:
             best_unproven = result
     reason = "; ".join(a.describe() for a in attempts) or "no library motion to connect to"
+    if retries > 0 and best_unproven is not None:
+        recovered = _rise_again_from_where_it_fell(
+            robot, best_unproven, scene=scene, seed=seed, budget_s=budget_s, candidates=candidates,
+            settings=settings, progress=progress, context=context, retries=retries - 1,
+        )
+        if recovered is not None:
+            return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _rise_again_from_where_it_fell(
+    robot: Robot,
+    failed: FilterResult,
+    *,
+    scene: str | os.PathLike[str] | None,
+    seed: int,
+    budget_s: float,
+    candidates: int,
+    settings: FilterSettings,
+    progress: Callable[[str], None] | None,
+    context: RiseContext,
+    retries: int,
+) -> RiseResult | None:
+    """A failed get-up that ends lying at rest is followed by a new rise from where it lies.
+
+    As a robot would after a failed attempt: the final simulated state (after the judge's hold)
+    becomes a new lying posture; the combined targets (failed attempt, its hold, the new rise)
+    are proven by replaying them from the original start.
+    """
+    rec = failed.recording
+    if classify_lying(rec.root_pose[-1, 3:]) == "upright":
+        return None
+    if np.max(np.abs(rec.qd[-1])) > RECOVERY_MAX_JOINT_SPEED or np.linalg.norm(rec.root_vel[-1]) > RECOVERY_MAX_ROOT_SPEED:
+        return None
+    joints = np.clip(rec.q[-1], robot.joint_lower, robot.joint_upper)
+    fallen = Posture(robot.name, rec.root_pose[-1, :3], rec.root_pose[-1, 3:], dict(zip(robot.joint_names, joints)))
+    if not context.checker.is_valid(fallen):
+        return None
+    log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
+    again = rise(
+        robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, settings=settings,
+        progress=progress, context=context, retries=retries,
+    )
+    if not again.ok or again.trajectory is None:
+        return None
+    first = failed.trajectory
+    held_until = first.duration_s + settings.hold_s
+    stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
+    combined = join_with_blend(stage1, again.trajectory, 0, blend_s=settings.blend_s)
+    _, verdict, report = prove(robot, combined, scene=scene, settings=settings, player=None, start=first.start)
+    if not report["proven"]:
+        log.info("combined recovery not proven on replay: %s", report["problems"])
+        return None
+    tr = combined.with_report(
+        **{k: v for k, v in again.trajectory.report.items() if k not in report},
+        **report,
+        recovery={"first_attempt_until_s": held_until, "first_attempt": failed.reason, "then": again.trajectory.report.get("motion")},
+    )
+    return RiseResult(True, tr, again.attempts, "", again.filter_result)
 
 
