@@ -39,6 +39,7 @@ from robot_rise.posture import Posture
 from robot_rise.servo import servo_spec
 from robot_rise.sim import Player, Recording
 from robot_rise.trajectory import Trajectory
+from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 
 __all__ = [
     "FilterSettings",
@@ -63,6 +64,8 @@ class FilterSettings:
     Attributes:
         envelope_margin: torque may use at most (1 - margin) of the torque-speed envelope
             (issue 6 default 10 %).
+        self_penetration_tolerance_m: self contact deeper than this is a collision; shallower
+            is touching (the validity checker's tolerance, so planner and filter agree).
         min_zmp_margin_m: the ZMP must stay this far inside the support polygon while on feet [m].
         balance_tolerance_m: ZMP excursions shallower than this are estimation noise (point-mass
             ZMP, support polygon from discrete contact points) [m].
@@ -82,6 +85,7 @@ class FilterSettings:
     """
 
     envelope_margin: float = 0.10
+    self_penetration_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M
     min_zmp_margin_m: float = 0.0
     balance_tolerance_m: float = 0.005
     balance_hold_s: float = 0.1
@@ -243,15 +247,21 @@ def prove(
     on = rec.on_feet & np.isfinite(rec.zmp_margin_m)
     ground_geoms = [rec.robot_geom_names[g] for g in np.flatnonzero(rec.ground_contact.any(axis=0))]
     within = verdict.peak_envelope_ratio <= limit + 1e-9
-    proven = bool(verdict.standing and within and not verdict.self_collision)
+    # Touching is not colliding: a limb resting on another (as a lying robot's often does from
+    # the start) interpenetrates less than the validity checker's contact tolerance.
+    self_collision = bool(np.max(rec.self_penetration_m, initial=0.0) > settings.self_penetration_tolerance_m)
+    proven = bool(verdict.standing and within and not self_collision)
     problems = []
     if not verdict.standing:
         problems.append(f"not standing: {verdict.reason}")
     if not within:
         worst = rec.joint_names[int(np.argmax(peak_per_joint))]
         problems.append(f"torque {verdict.peak_envelope_ratio:.2f} of the envelope (limit {limit:.2f}) at {worst}")
-    if verdict.self_collision:
-        problems.append("self-collision: " + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3]))
+    if self_collision:
+        problems.append(
+            f"self-collision {1000 * float(np.max(rec.self_penetration_m)):.1f} mm deep: "
+            + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3])
+        )
     report = {
         "proven": proven,
         "problems": problems,
@@ -268,7 +278,9 @@ def prove(
         "min_zmp_margin_m": float(np.min(rec.zmp_margin_m[on])) if on.any() else None,
         "time_on_feet_s": float(on.sum() * (rec.t[1] - rec.t[0])) if len(rec.t) > 1 else 0.0,
         "ground_contacts": ground_geoms,
-        "self_collision": bool(verdict.self_collision),
+        "self_collision": self_collision,
+        "self_touch": bool(verdict.self_collision),
+        "max_self_penetration_m": float(np.max(rec.self_penetration_m, initial=0.0)),
         "stood_from_s": float(verdict.stood_from_s) if np.isfinite(verdict.stood_from_s) else None,
     }
     return rec, verdict, report

@@ -23,7 +23,7 @@ import numpy as np
 from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
 
-__all__ = ["Looseness", "STRICT", "Collision", "ValidityReport", "ValidityChecker", "CollisionKind"]
+__all__ = ["Looseness", "STRICT", "Collision", "ValidityReport", "ValidityChecker", "CollisionKind", "DEFAULT_CONTACT_TOLERANCE_M"]
 
 DEFAULT_CONTACT_TOLERANCE_M = 0.002  # interpenetration allowed as "touching" (MuJoCo soft contact)
 DEFAULT_CLEARANCE_MARGIN_M = 0.05  # distances are measured up to this; beyond, clearance reads as this
