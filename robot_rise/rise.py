@@ -8,6 +8,7 @@ result lists every attempt and why it failed.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import time
@@ -29,11 +30,12 @@ from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture"]
+__all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture", "lying_frames"]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_CANDIDATES = 3  # library motions tried, nearest first
+LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is this close to the start's height
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
@@ -88,8 +90,30 @@ class RiseContext:
     @classmethod
     def build(cls, robot: Robot, scene: str | os.PathLike[str] | None = "flat", library: MotionLibrary | None = None) -> RiseContext:
         library = library or load_library(robot_name=robot.library)
-        index = library.frame_index(robot)
+        index = lying_frames(library.frame_index(robot), library)
         return cls(robot, scene, ValidityChecker(robot, scene), library, index, KMeansTree(index))
+
+
+def lying_frames(index: FrameIndex, library: MotionLibrary, *, max_rise_m: float = LYING_ROOT_RISE_M) -> FrameIndex:
+    """Only the frames where the robot still lies: root at most ``max_rise_m`` above its start height.
+
+    A human character's root can be guided by virtual forces (paper 000 section 4.3); a robot's
+    cannot: a planned path between two lying postures only moves the joints, so a connecting
+    frame where the motion has already lifted the body (on all fours, kneeling) is one the robot
+    cannot reach from the floor by the plan. Those frames stay out of the selection.
+    """
+    keep = np.zeros(index.size, dtype=bool)
+    for mid, name in enumerate(index.motion_names):
+        motion = library.get(name)
+        rows = np.flatnonzero(index.motion_id == mid)
+        z = motion.trajectory.root[index.frame[rows], 2] if motion.trajectory.root is not None else np.zeros(rows.size)
+        keep[rows] = z <= motion.start.root_pos[2] + max_rise_m
+    rows = np.flatnonzero(keep)
+    fields = {
+        f.name: (getattr(index, f.name)[rows] if isinstance(getattr(index, f.name), np.ndarray) and getattr(index, f.name).shape[:1] == (index.size,) else getattr(index, f.name))
+        for f in dataclasses.fields(index)
+    }
+    return FrameIndex(**fields)
 
 
 def connection_candidates(

@@ -73,6 +73,6 @@ def run(args: argparse.Namespace) -> int:
         report_dir = out / "report"
         ns = parser.parse_args(["report", str(traj), "--out", str(report_dir), "--scene", str(args.scene)])
         rc = ns.func(ns)
-        print(f"5. report: {report_dir / 'index.html'}")
+        print(f"5. report: {report_dir / 'report.html'}")
         code = code or rc
     return code

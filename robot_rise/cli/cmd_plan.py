@@ -44,14 +44,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _select_goal(start, checker: ValidityChecker):  # noqa: ANN001, ANN202 - thin CLI glue
     """The nearest library frame (paper 000 section 4.1), placed where the robot lies."""
-    from robot_rise.library import load_library
-    from robot_rise.rise import connecting_posture, connection_candidates
+    from robot_rise.rise import RiseContext, connecting_posture, connection_candidates
 
     robot = checker.robot
-    library = load_library(robot_name=robot.library)
-    conn = connection_candidates(library, robot, start, 1)[0]
+    ctx = RiseContext.build(robot, checker.scene)
+    conn = connection_candidates(ctx.library, robot, start, 1, index=ctx.index, tree=ctx.tree)[0]
     print(f"connecting posture: {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})", file=sys.stderr)
-    return connecting_posture(library, robot, conn, start, checker)
+    return connecting_posture(ctx.library, robot, conn, start, checker)
 
 
 def _planner(name: str):  # noqa: ANN202
