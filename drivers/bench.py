@@ -1,37 +1,77 @@
 """Bus benchmark: cycle rate vs the wire-time limit, host CPU per cycle, jitter at 100 Hz.
 
-Run: ``robot-rise bench bus`` (or ``python -m drivers.bench``). Uses the emulator with wire
-timing on, 20 XM430-W350 servos, return delay 0.
+Run: ``robot-rise bench bus`` (or ``python -m drivers.bench``). 20 XM430-W350 servos with
+return delay 0 and wire timing on. By default the emulator runs in a child process behind a
+pseudo-terminal (:mod:`drivers.mockbus.pty_server`), so its Python work is not host time and
+the host talks to it through the same kernel path as to a USB adapter; ``transport="inprocess"``
+uses the ``dxlsim://`` URL handler instead (emulator work then happens inside the host's
+``write``/``read`` and is subtracted from the CPU figure, but still costs wall time).
+
+One cycle = sync write of goal positions (deferred, 114 B) + Fast Sync Read of the 14-byte
+indirect feedback block (34 B request + 368 B reply), handed to the kernel in one ``write()``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.clock import realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
 from drivers.group import FEEDBACK_SIZE
 from drivers.protocol import wire_time_s
 from drivers.safety import SafetyLimits
 from drivers.servo_map import BusSpec, ServoMap, ServoSpec
-from drivers.session import connect, mock_url_for
+from drivers.session import Connection, connect, mock_url_for
 from drivers.startup import engage, preflight
 
-__all__ = ["BusBenchResult", "bench_bus", "main"]
+__all__ = ["BusBenchResult", "bench_bus", "host_code_cpu", "wire_limit_hz", "format_result", "main"]
+
+TRANSPORTS = ("pty", "inprocess")
 
 
 @dataclass(frozen=True)
 class BusBenchResult:
-    """Figures of one baud rate (times in [s], rates in [Hz])."""
+    """Figures of one baud rate (times in [s], rates in [Hz]).
+
+    Attributes:
+        baud_rate: [bit/s].
+        n_servos: servos on the bus.
+        transport: ``"pty"`` (emulator in a child process) or ``"inprocess"``.
+        cycle_rate_hz: back-to-back cycles per second measured.
+        wire_limit_hz: 1 / wire time of one cycle's bytes.
+        host_cpu_per_cycle_s: host thread CPU time (user + kernel) per back-to-back cycle.
+        jitter_p99_at_100hz_s: p99 lateness of cycle starts of the executor at 100 Hz.
+        executor_cpu_per_cycle_s: host CPU per executor cycle at 100 Hz (safety, logging
+            bookkeeping included).
+        fast_read_failures: Fast Sync Reads that failed during the run (fell back).
+        timeouts: transactions without a reply during the run.
+        jitter_run_completed: the 100 Hz run finished without a fault (if it ran).
+        host_code_cpu_per_cycle_s: CPU of the host's own code per cycle with the port replaced
+            by a stub answering instantly (no kernel, no emulator): what the Python costs.
+        scheduling: the scheduling policy the run had.
+    """
 
     baud_rate: int
     n_servos: int
+    transport: str
     cycle_rate_hz: float
     wire_limit_hz: float
     host_cpu_per_cycle_s: float
     jitter_p99_at_100hz_s: float | None
+    executor_cpu_per_cycle_s: float | None
+    fast_read_failures: int
+    timeouts: int
+    jitter_run_completed: bool | None = None
+    host_code_cpu_per_cycle_s: float | None = None
+    scheduling: str = "normal scheduling"
+
+    @property
+    def ratio(self) -> float:
+        return self.cycle_rate_hz / self.wire_limit_hz
 
 
 def _map(n: int, baud: int) -> ServoMap:
@@ -39,44 +79,142 @@ def _map(n: int, baud: int) -> ServoMap:
     return ServoMap("bench", BusSpec(baud, 0.0), servos)
 
 
-def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s: float = 0.0) -> BusBenchResult:
+def wire_limit_hz(n_servos: int, baud_rate: int) -> float:
+    """Cycles per second the wire allows: goal sync write + fast sync read of the feedback block."""
+    write_b = 14 + 5 * n_servos
+    read_b = (10 + 4 + n_servos) + 8 + n_servos * (4 + FEEDBACK_SIZE)
+    return 1.0 / wire_time_s(write_b + read_b, baud_rate)
+
+
+def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float,
+             emulator_cpu: bool) -> tuple[float, float, float | None, float | None, bool | None]:
+    group = conn.group
+    preflight(group)
+    engage(group, watchdog_s=None)
+    q = np.zeros(n_servos)
+    port = group.bus.port
+    for _ in range(20):  # warm-up
+        group.write_goals(q, defer=True)
+        group.read_feedback()
+    t0 = time.perf_counter()
+    c0 = time.thread_time()
+    e0 = getattr(port, "emulator_time_s", 0.0) if emulator_cpu else 0.0
+    for _ in range(cycles):
+        group.write_goals(q, defer=True)
+        group.read_feedback()
+    wall = time.perf_counter() - t0
+    cpu = time.thread_time() - c0
+    if emulator_cpu:
+        cpu -= getattr(port, "emulator_time_s", 0.0) - e0
+    p99 = ex_cpu = None
+    completed = None
+    if jitter_s > 0:
+        smap = group.map
+        ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0))
+        rep = ex.run(smap.joint_names, np.array([0.0, jitter_s]), np.zeros((2, n_servos)))
+        p99, ex_cpu, completed = rep.stats.jitter_p99_s, rep.stats.cpu_mean_s, rep.completed
+    return cycles / wall, cpu / cycles, p99, ex_cpu, completed
+
+
+class _InstantPort:
+    """A port stub for :func:`host_code_cpu`: swallows writes, answers reads with ``reply``."""
+
+    timeout: float | None = None
+
+    def __init__(self, reply: bytes) -> None:
+        self.reply = reply
+
+    def write(self, data: bytes) -> int:
+        return len(data)
+
+    def read(self, size: int = 1) -> bytes:
+        return self.reply
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+
+def host_code_cpu(n_servos: int = 20, *, cycles: int = 2000) -> float:
+    """CPU time [s] of one host cycle (goal write + fast feedback read and decode) without I/O."""
+    import struct
+
+    from drivers.bus import DynamixelBus
+    from drivers.clock import FakeClock
+    from drivers.group import ServoGroup
+    from drivers.protocol import encode_fast_sync_status
+
+    smap = _map(n_servos, 4_000_000)
+    block = struct.pack("<iihBBH", 2048, 0, 0, 0, 30, 120)
+    port = _InstantPort(encode_fast_sync_status([(i, 0, block) for i in smap.ids]))
+    group = ServoGroup(DynamixelBus(port, baud_rate=4_000_000, clock=FakeClock()), smap, fast_read=True)
+    q = np.zeros(n_servos)
+    for _ in range(100):
+        group.write_goals(q, defer=True)
+        group.read_feedback()
+    c0 = time.thread_time()
+    for _ in range(cycles):
+        group.write_goals(q, defer=True)
+        group.read_feedback()
+    return (time.thread_time() - c0) / cycles
+
+
+def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s: float = 0.0,
+              transport: str = "pty", realtime_priority: int | None = None) -> BusBenchResult:
+    """Measure one baud rate (see the module docstring).
+
+    Args:
+        baud_rate: bus speed [bit/s] (1, 2, 3 or 4 Mbps).
+        cycles: back-to-back cycles timed.
+        jitter_s: seconds of 100 Hz executor streaming for the jitter figure (0: skip).
+        transport: ``"pty"`` or ``"inprocess"``.
+        realtime_priority: run host (and the emulator process it starts) under SCHED_FIFO.
+    """
+    if transport not in TRANSPORTS:
+        raise ValueError(f"transport {transport!r} not in {TRANSPORTS}")
+    with realtime_scheduling(realtime_priority) as note:
+        result = _bench(baud_rate, n_servos, cycles, jitter_s, transport)
+    return dataclasses.replace(result, scheduling=note)
+
+
+def _bench(baud_rate: int, n_servos: int, cycles: int, jitter_s: float, transport: str) -> BusBenchResult:
     smap = _map(n_servos, baud_rate)
-    url = mock_url_for(smap, wire_timing=True)
-    with connect(smap, url) as conn:
-        group = conn.group
-        preflight(group)
-        engage(group, watchdog_s=None)
-        q = np.zeros(n_servos)
-        port = group.bus.port
-        for _ in range(20):  # warm-up
-            group.write_goals(q)
-            group.read_feedback()
-        t0 = time.perf_counter()
-        c0 = time.thread_time()
-        e0 = getattr(port, "emulator_time_s", 0.0)
-        for _ in range(cycles):
-            group.write_goals(q)
-            group.read_feedback()
-        wall = time.perf_counter() - t0
-        cpu = time.thread_time() - c0 - (getattr(port, "emulator_time_s", 0.0) - e0)
-        write_b = 14 + 5 * n_servos
-        read_b = (10 + 4 + n_servos) + 8 + n_servos * (4 + FEEDBACK_SIZE)
-        limit = 1.0 / wire_time_s(write_b + read_b, baud_rate)
-        p99 = None
-        if jitter_s > 0:
-            ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0))
-            rep = ex.run(smap.joint_names, np.array([0.0, jitter_s]), np.zeros((2, n_servos)))
-            p99 = rep.stats.jitter_p99_s
-    return BusBenchResult(baud_rate, n_servos, cycles / wall, limit, cpu / cycles, p99)
+    if transport == "pty":
+        from drivers.mockbus.pty_server import spawn_pty_server
+
+        with spawn_pty_server(smap.ids, baud_rate=baud_rate, wire_timing=True) as server:
+            with connect(smap, server.device) as conn:
+                rate, cpu, p99, ex_cpu, completed = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
+                stats = conn.bus.stats
+    else:
+        with connect(smap, mock_url_for(smap, wire_timing=True)) as conn:
+            rate, cpu, p99, ex_cpu, completed = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
+            stats = conn.bus.stats
+    return BusBenchResult(baud_rate, n_servos, transport, rate, wire_limit_hz(n_servos, baud_rate), cpu,
+                          p99, ex_cpu, stats.fast_read_failures, stats.timeouts, completed,
+                          host_code_cpu(n_servos))
+
+
+def format_result(r: BusBenchResult) -> str:
+    """One line of figures for the operator."""
+    line = (f"{r.baud_rate / 1e6:.0f} Mbps, {r.n_servos} servos ({r.transport}, {r.scheduling}): {r.cycle_rate_hz:.0f} Hz "
+            f"measured vs {r.wire_limit_hz:.0f} Hz wire limit (ratio {r.ratio:.2f}); "
+            f"host CPU {r.host_cpu_per_cycle_s * 1e3:.3f} ms/cycle")
+    if r.host_code_cpu_per_cycle_s is not None:
+        line += f" ({r.host_code_cpu_per_cycle_s * 1e3:.3f} ms of it our code, no I/O)"
+    if r.jitter_p99_at_100hz_s is not None:
+        line += f"; jitter p99 at 100 Hz {r.jitter_p99_at_100hz_s * 1e3:.3f} ms"
+    if r.executor_cpu_per_cycle_s is not None:
+        line += f" (executor CPU {r.executor_cpu_per_cycle_s * 1e3:.3f} ms/cycle)"
+    if r.jitter_run_completed is False:
+        line += "; the 100 Hz run ABORTED (see the log)"
+    if r.fast_read_failures or r.timeouts:
+        line += f"; {r.fast_read_failures} fast-read failures, {r.timeouts} timeouts"
+    return line
 
 
 def main() -> None:  # pragma: no cover - prints figures
     for baud in (1_000_000, 4_000_000):
-        r = bench_bus(baud, jitter_s=3.0 if baud == 1_000_000 else 0.0)
-        print(f"{baud / 1e6:.0f} Mbps, {r.n_servos} servos: {r.cycle_rate_hz:.0f} Hz measured vs "
-              f"{r.wire_limit_hz:.0f} Hz wire limit ({100 * r.cycle_rate_hz / r.wire_limit_hz:.0f}%); "
-              f"host CPU {r.host_cpu_per_cycle_s * 1e3:.3f} ms/cycle"
-              + (f"; jitter p99 at 100 Hz {r.jitter_p99_at_100hz_s * 1e3:.3f} ms" if r.jitter_p99_at_100hz_s is not None else ""))
+        print(format_result(bench_bus(baud, jitter_s=3.0)))
 
 
 if __name__ == "__main__":  # pragma: no cover

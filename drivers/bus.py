@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -24,10 +24,12 @@ from drivers.control_table import Register
 from drivers.errors import CommunicationError, ProtocolError, ServoStatusError, ServoTimeout
 from drivers.protocol import (
     BROADCAST_ID,
+    HEADER,
     Instruction,
     PacketReader,
     bulk_read_params,
     bulk_write_params,
+    crc16,
     decode_fast_sync_status,
     decode_packet,
     describe_error,
@@ -43,6 +45,7 @@ from drivers.protocol import (
 __all__ = ["Transport", "PingResult", "GroupRead", "BusStats", "DynamixelBus"]
 
 _log = logging.getLogger(__name__)
+_NOT_RETRIED = (Instruction.REBOOT, Instruction.FACTORY_RESET)
 
 
 class Transport(Protocol):
@@ -98,6 +101,7 @@ class BusStats:
     timeouts: int = 0
     corrupt_replies: int = 0
     fast_read_failures: int = 0
+    stale_replies: int = 0
     by_id_timeouts: dict[int, int] = field(default_factory=dict)
 
 
@@ -110,19 +114,26 @@ class DynamixelBus:
         clock: time source shared with the caller (and with the emulator in tests).
         rx_margin_s: slack added to every reply timeout [s] (USB latency, firmware jitter).
         return_delay_s: servo Return Delay Time [s] assumed for timeouts.
+        retries: extra attempts of a single-servo instruction that got no reply (not for
+            REBOOT, whose reply may be lost to the reboot itself). Group reads never retry:
+            the servo group isolates silent servos instead.
 
     Use as a context manager to close the port on exit.
     """
 
     def __init__(self, port: Transport, *, baud_rate: int, clock: Clock | None = None,
-                 rx_margin_s: float = 0.004, return_delay_s: float = 0.0005) -> None:
+                 rx_margin_s: float = 0.004, return_delay_s: float = 0.0005, retries: int = 1) -> None:
         self.port = port
         self.baud_rate = baud_rate
         self.clock: Clock = clock or MonotonicClock()
         self.rx_margin_s = rx_margin_s
         self.return_delay_s = return_delay_s
+        self.retries = retries
         self.stats = BusStats()
         self._timeout: float | None = None
+        self._last_tx_bytes = 0  # bytes of the last write() (replies queue behind them)
+        self._tx_queue: list[bytes] = []  # deferred no-reply frames, sent with the next packet
+        self._request_cache: dict[tuple[int, int, int, tuple[int, ...]], bytes] = {}
 
     def __enter__(self) -> "DynamixelBus":
         return self
@@ -131,16 +142,30 @@ class DynamixelBus:
         self.close()
 
     def close(self) -> None:
+        try:
+            self.flush()
+        except CommunicationError:
+            pass
         close = getattr(self.port, "close", None)
         if close is not None:
             close()
 
     # ---- low level -----------------------------------------------------------------------
     def _reply_timeout(self, n_bytes: int, n_replies: int) -> float:
-        return (wire_time_s(n_bytes, self.baud_rate) + n_replies * self.return_delay_s
+        # the replies follow everything the last write() put on the wire (deferred frames too)
+        return (wire_time_s(n_bytes + self._last_tx_bytes, self.baud_rate) + n_replies * self.return_delay_s
                 + self.rx_margin_s)
 
+    def flush(self) -> None:
+        """Send deferred frames now (normally they go out with the next instruction)."""
+        if self._tx_queue:
+            self._send(b"")
+
     def _send(self, frame: bytes) -> None:
+        if self._tx_queue:  # deferred sync writes share this packet's write() call
+            self._tx_queue.append(frame)
+            frame = b"".join(self._tx_queue)
+            self._tx_queue.clear()
         try:
             self.port.reset_input_buffer()
             self.port.write(frame)
@@ -149,6 +174,7 @@ class DynamixelBus:
                                      hint="the adapter may have been unplugged") from e
         self.stats.packets_sent += 1
         self.stats.bytes_sent += len(frame)
+        self._last_tx_bytes = len(frame)
         if _log.isEnabledFor(logging.DEBUG):
             _log.debug("tx %s", frame.hex(" "))
 
@@ -165,20 +191,29 @@ class DynamixelBus:
             _log.debug("rx %s", data.hex(" "))
         return data
 
-    def _collect_frames(self, n_frames: int, expected_bytes: int) -> list[bytes]:
-        """Read until ``n_frames`` valid frames or the timeout; corrupt frames are skipped."""
+    def _collect_frames(self, n_frames: int, expected_bytes: int,
+                        accept: Callable[[bytes], bool] | None = None) -> list[bytes]:
+        """Read until ``n_frames`` accepted frames or the timeout; corrupt frames are skipped.
+
+        Frames ``accept`` rejects (a late reply to an earlier instruction) are dropped and
+        counted in ``stats.stale_replies``; reading goes on for the frames we want.
+        """
         reader = PacketReader()
         frames: list[bytes] = []
         timeout = self._reply_timeout(expected_bytes, n_frames)
         want = expected_bytes
-        for _ in range(4):  # one read normally; more only if byte stuffing lengthened replies
+        for _ in range(6):  # one read normally; more after stuffing, stale or split replies
             chunk = self._receive(max(want, 1), timeout)
             if not chunk:
                 break
             reader.feed(chunk)
             want -= len(chunk)
             while (frame := reader.next_frame()) is not None:
-                frames.append(frame)
+                if accept is None or accept(frame):
+                    frames.append(frame)
+                else:
+                    self.stats.stale_replies += 1
+                    want += len(frame)
             if len(frames) >= n_frames:
                 break
             if want <= 0:
@@ -198,13 +233,25 @@ class DynamixelBus:
             ServoTimeout: no valid status arrived.
         """
         frame = encode_packet(servo_id, instruction, params)
-        self._send(frame)
-        frames = self._collect_frames(1, status_length(reply_data_len))
-        for f in frames:
+        def accept(f: bytes) -> bool:
+            # a late reply to an earlier instruction of the same servo is told apart by its
+            # data size; an error status may come without data
+            if f[4] != servo_id or f[7] != Instruction.STATUS:
+                return False
             p = decode_packet(f)
-            if p.is_status and p.servo_id == servo_id:
-                return p.error, p.data
-        self._note_timeout((servo_id,))
+            return len(p.data) == reply_data_len or bool(p.error & 0x7F)
+
+        for attempt in range(1 + self.retries):
+            self._send(frame)
+            frames = self._collect_frames(1, status_length(reply_data_len), accept)
+            for f in frames:
+                p = decode_packet(f)
+                if p.is_status and p.servo_id == servo_id:
+                    return p.error, p.data
+            self._note_timeout((servo_id,))
+            if instruction in _NOT_RETRIED:
+                break
+            _log.debug("servo %d: no reply (attempt %d)", servo_id, attempt + 1)
         raise ServoTimeout([servo_id], frame)
 
     def _note_timeout(self, ids: Iterable[int]) -> None:
@@ -281,11 +328,51 @@ class DynamixelBus:
         self._send(encode_packet(servo_id, Instruction.ACTION))
 
     # ---- group instructions --------------------------------------------------------------
-    def sync_write(self, address: int, length: int, data_by_id: Mapping[int, bytes]) -> None:
-        """SYNC_WRITE the same register span on several servos (no reply)."""
+    def sync_write(self, address: int, length: int, data_by_id: Mapping[int, bytes], *,
+                   defer: bool = False) -> None:
+        """SYNC_WRITE the same register span on several servos (no reply).
+
+        With ``defer`` the frame is queued and goes out in the same ``write()`` as the next
+        instruction (one USB transfer for goal write + feedback read), or on :meth:`flush`.
+        """
         if data_by_id:
-            self._send(encode_packet(BROADCAST_ID, Instruction.SYNC_WRITE,
-                                     sync_write_params(address, length, data_by_id)))
+            self.sync_write_params(sync_write_params(address, length, data_by_id), defer=defer)
+
+    def sync_write_params(self, params: bytes, *, defer: bool = False) -> None:
+        """SYNC_WRITE with prebuilt parameters (address, length, then id + data per servo)."""
+        frame = encode_packet(BROADCAST_ID, Instruction.SYNC_WRITE, params)
+        if defer:
+            self._tx_queue.append(frame)
+        else:
+            self._send(frame)
+
+    def fast_sync_read_raw(self, address: int, length: int, ids: tuple[int, ...]) -> bytes | None:
+        """FAST_SYNC_READ returning the validated raw reply frame, or ``None`` on any failure.
+
+        The request frame is built once per (address, length, ids). The reply is checked for
+        size, header and CRC only; the caller splits the ``8 + k * (4 + length)`` blocks
+        (``ERR ID DATA CRC2`` each) itself, e.g. with one numpy structured view.
+        """
+        key = (Instruction.FAST_SYNC_READ, address, length, ids)
+        frame = self._request_cache.get(key)
+        if frame is None:
+            frame = encode_packet(BROADCAST_ID, Instruction.FAST_SYNC_READ, sync_read_params(address, length, ids))
+            if len(self._request_cache) > 64:
+                self._request_cache.clear()
+            self._request_cache[key] = frame
+        self._send(frame)
+        expected = 8 + len(ids) * (4 + length)
+        raw = self._receive(expected, self._reply_timeout(expected, len(ids)))
+        if (len(raw) != expected or raw[:4] != HEADER or raw[4] != BROADCAST_ID
+                or raw[7] != Instruction.STATUS or crc16(raw[:-2]) != (raw[-2] | (raw[-1] << 8))):
+            self.stats.fast_read_failures += 1
+            if len(raw) < expected:
+                self._note_timeout(ids)
+            else:
+                self.stats.corrupt_replies += 1
+            _log.debug("fast sync read failed (%d of %d bytes)", len(raw), expected)
+            return None
+        return raw
 
     def bulk_write(self, items: Sequence[tuple[int, int, bytes]]) -> None:
         """BULK_WRITE ``(id, address, data)`` items (no reply)."""
@@ -323,8 +410,9 @@ class DynamixelBus:
 
     def _plain_replies(self, ids: list[int], lengths: list[int]) -> GroupRead:
         expected = sum(status_length(n) for n in lengths)
-        frames = self._collect_frames(len(ids), expected)
         want = dict(zip(ids, lengths))
+        frames = self._collect_frames(len(ids), expected,
+                                      lambda f: f[4] in want and f[7] == Instruction.STATUS)
         data: dict[int, bytes] = {}
         errors: dict[int, int] = {}
         for f in frames:
@@ -361,8 +449,6 @@ class DynamixelBus:
 
 
 def _decode_fast_bulk(frame: bytes, ids: Sequence[int], lengths: Sequence[int]) -> dict[int, tuple[int, bytes]]:
-    from drivers.protocol import HEADER, crc16
-
     expected = 8 + sum(4 + n for n in lengths)
     if len(frame) != expected or frame[:4] != HEADER or crc16(frame[:-2]) != (frame[-2] | (frame[-1] << 8)):
         raise ProtocolError("bad fast bulk read reply")

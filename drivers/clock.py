@@ -6,10 +6,16 @@ logic can be tested deterministically: with :class:`FakeClock`, ``sleep`` just a
 
 from __future__ import annotations
 
+import logging
+import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Protocol, runtime_checkable
 
-__all__ = ["Clock", "MonotonicClock", "FakeClock"]
+__all__ = ["Clock", "MonotonicClock", "FakeClock", "realtime_scheduling"]
+
+_log = logging.getLogger(__name__)
 
 _SPIN_S = 0.0003  # [s] final stretch of a precise sleep that is busy-waited
 
@@ -71,3 +77,32 @@ class FakeClock:
     def advance(self, duration_s: float) -> None:
         """Move time forward by ``duration_s`` [s]."""
         self.sleep(duration_s)
+
+
+@contextmanager
+def realtime_scheduling(priority: int | None) -> Iterator[str]:
+    """Run the block under Linux ``SCHED_FIFO`` at ``priority`` (1..99); yields a note.
+
+    A control loop on a busy host wakes late when other processes hold the CPU; real-time
+    scheduling is the standard remedy (the same as ``chrt -f PRIORITY``). Child processes
+    started inside the block inherit it. Without the privilege (root or CAP_SYS_NICE) the block
+    runs at normal priority and the note says so. ``None`` does nothing.
+    """
+    if priority is None:
+        yield "normal scheduling"
+        return
+    if not hasattr(os, "sched_setscheduler"):
+        yield "real-time scheduling not available on this platform"
+        return
+    old_policy = os.sched_getscheduler(0)
+    old_param = os.sched_getparam(0)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError, ValueError) as e:
+        _log.warning("cannot switch to SCHED_FIFO %d: %s (needs root or CAP_SYS_NICE)", priority, e)
+        yield f"SCHED_FIFO {priority} refused ({e}); normal scheduling"
+        return
+    try:
+        yield f"SCHED_FIFO priority {priority}"
+    finally:
+        os.sched_setscheduler(0, old_policy, old_param)

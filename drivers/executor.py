@@ -5,6 +5,9 @@ interpolate the trajectory, pass the target through :func:`drivers.safety.safe_t
 sync write of goals, one (fast) sync read of feedback, judge it with
 :func:`drivers.safety.evaluate_feedback`, log a row. On a fault or Ctrl-C: a controlled stop by
 policy, then (for HOLD) bounded recovery of shut-down servos so the robot keeps holding.
+A cycle that starts more than one period late (a stall of the host or the bus) re-anchors the
+schedule: the rest of the trajectory is delayed, never replayed back to back (which would move
+the servos faster than the per-cycle step limit intends).
 
 The trajectory is plain arrays (joint names, t, q); nothing here knows robot_rise types.
 """
@@ -22,6 +25,7 @@ from typing import IO
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.clock import realtime_scheduling
 from drivers.errors import SafetyError
 from drivers.group import GOAL_PWM, Feedback, ServoGroup
 from drivers.safety import (
@@ -58,6 +62,8 @@ class ExecutorConfig:
         hold_s: time to keep streaming the final target after the trajectory ends [s].
         recovery_attempts: automatic recovery attempts per shut-down servo after an abort.
         log_path: CSV log of commanded vs present per cycle (None: no log).
+        realtime_priority: run the loop under SCHED_FIFO at this priority (1..99; needs root
+            or CAP_SYS_NICE, refused with a warning otherwise); None: normal scheduling.
     """
 
     rate_hz: float = 100.0
@@ -68,6 +74,7 @@ class ExecutorConfig:
     hold_s: float = 0.2
     recovery_attempts: int = 2
     log_path: Path | None = None
+    realtime_priority: int | None = None
 
     def __post_init__(self) -> None:
         if not 1.0 <= self.rate_hz <= 2000.0:
@@ -87,6 +94,8 @@ class CycleStats:
         deadline_misses: cycles whose work overran the period.
         work_mean_s / work_max_s: wall time of a cycle's work [s].
         cpu_mean_s: host CPU time per cycle, emulator excluded when measurable [s].
+        resyncs: cycles that started more than a period late; the schedule was re-anchored
+            there (the trajectory is delayed, never replayed faster than planned).
     """
 
     cycles: int
@@ -98,12 +107,13 @@ class CycleStats:
     work_mean_s: float
     work_max_s: float
     cpu_mean_s: float
+    resyncs: int = 0
 
     @staticmethod
     def from_samples(period_s: float, lateness: Sequence[float], work: Sequence[float],
-                     cpu: Sequence[float]) -> "CycleStats":
+                     cpu: Sequence[float], *, resyncs: int = 0) -> "CycleStats":
         if not lateness:
-            return CycleStats(0, period_s, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0.0)
+            return CycleStats(0, period_s, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0.0, resyncs)
         late = np.asarray(lateness)
         w = np.asarray(work)
         return CycleStats(
@@ -111,6 +121,7 @@ class CycleStats:
             jitter_p50_s=float(np.percentile(late, 50)), jitter_p99_s=float(np.percentile(late, 99)),
             jitter_max_s=float(late.max()), deadline_misses=int(np.sum(w > period_s)),
             work_mean_s=float(w.mean()), work_max_s=float(w.max()), cpu_mean_s=float(np.mean(cpu)),
+            resyncs=resyncs,
         )
 
 
@@ -214,6 +225,11 @@ class Executor:
 
     def run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
         """Execute; returns a report (faults are reported, not raised)."""
+        with realtime_scheduling(self.config.realtime_priority) as note:
+            _log.info("executor: %s", note)
+            return self._run(joint_names, t, q)
+
+    def _run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
         cfg, group, limits = self.config, self.group, self.limits
         clock = group.bus.clock
         fb0 = group.read_feedback()
@@ -242,6 +258,7 @@ class Executor:
         clamped_cycles = 0
         last_fb: Feedback = fb0
         k = 0
+        resyncs = 0
         t0 = clock.now()
         try:
             for k in range(max_cycles):
@@ -251,12 +268,18 @@ class Executor:
                     clock.sleep(t_nominal - now)
                 start = clock.now()
                 lateness.append(start - t_nominal)
+                if start - t_nominal > dt:
+                    # a stall (host or bus) cost whole periods: re-anchor the schedule instead of
+                    # running the missed cycles back to back, which would move the servos faster
+                    # than the per-cycle step limit allows; the motion is delayed, never hurried
+                    t0 += start - t_nominal
+                    resyncs += 1
                 c0 = time.thread_time()
                 e0 = getattr(port, "emulator_time_s", 0.0)
                 q_des = interpolate(t_run, q_run, k * dt)
                 q_cmd, clamped = safe_target(q_des, q_prev, limits, dt)
                 clamped_cycles += clamped
-                group.write_goals(q_cmd)
+                group.write_goals(q_cmd, defer=True)  # leaves with the feedback read
                 fb = group.read_feedback()
                 for sid in group.readmitted:  # back from quarantine: restart from where it is
                     j = group.ids.index(sid)
@@ -289,7 +312,9 @@ class Executor:
             if log:
                 log.close()
         recovery = self._stop(last_fb, faults)
-        stats = CycleStats.from_samples(dt, lateness, work, cpu)
+        stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs)
+        if resyncs:
+            _log.warning("%d stall(s) longer than a period: schedule re-anchored, motion delayed", resyncs)
         return ExecutionReport(not faults, tuple(faults), stats, max_track, clamped_cycles,
                                cfg.stop_policy, recovery, cfg.log_path,
                                np.array(commands) if commands else None)

@@ -39,6 +39,10 @@ _log = logging.getLogger(__name__)
 FEEDBACK_LAYOUT: tuple[tuple[int, int], ...] = ((132, 4), (128, 4), (126, 2), (70, 1), (146, 1), (144, 2))
 FEEDBACK_SIZE = sum(n for _, n in FEEDBACK_LAYOUT)  # 14 bytes
 _FEEDBACK_STRUCT = struct.Struct("<iihBBH")
+# one servo's block of a Fast Sync Read reply: error, id, the feedback layout, running CRC
+_FAST_BLOCK = np.dtype([("error", "u1"), ("id", "u1"), ("pos", "<i4"), ("vel", "<i4"), ("cur", "<i2"),
+                        ("hw", "u1"), ("temp", "u1"), ("volt", "<u2"), ("crc", "<u2")])
+_GOAL_BLOCK = np.dtype([("id", "u1"), ("ticks", "<i4")])  # one servo's sync-write goal entry
 GOAL_POSITION = 116
 TORQUE_ENABLE = 64
 GOAL_PWM = 100
@@ -105,6 +109,14 @@ class ServoGroup:
         self._cycle = 0
         self._index = {sid: k for k, sid in enumerate(self.ids)}
         self._goal_reg = struct.Struct("<i")
+        n = len(self.ids)
+        self._ids_array = np.array(self.ids, dtype=np.uint8)
+        self._ids_tuple = tuple(self.ids)
+        # goal sync write for all servos: the parameter block is a numpy record array whose
+        # header (address, length) and IDs are filled once; only the ticks change per cycle
+        self._goal_header = struct.pack("<HH", GOAL_POSITION, 4)
+        self._goal_block = np.zeros(n, dtype=_GOAL_BLOCK)
+        self._goal_block["id"] = self._ids_array
 
     # ---- configuration helpers ----------------------------------------------------------
     def indirect_address_items(self) -> list[tuple[int, bytes]]:
@@ -118,16 +130,24 @@ class ServoGroup:
         return out
 
     # ---- writes ---------------------------------------------------------------------------
-    def write_goals(self, q_rad: NDArray[np.float64], *, skip: Sequence[int] = ()) -> NDArray[np.int64]:
+    def write_goals(self, q_rad: NDArray[np.float64], *, skip: Sequence[int] = (),
+                    defer: bool = False) -> NDArray[np.int64]:
         """Sync-write goal positions for joint angles ``q_rad`` [rad], shape (n,).
 
-        Quarantined servos and ``skip`` IDs are left out. Returns the ticks sent, shape (n,).
+        Quarantined servos and ``skip`` IDs are left out. With ``defer`` the frame leaves with
+        the next instruction (the feedback read) in one ``write()``. Returns the ticks sent,
+        shape (n,).
         """
         ticks = self.map.to_ticks(q_rad)
+        if not self.quarantined and not skip:
+            block = self._goal_block
+            block["ticks"] = ticks
+            self.bus.sync_write_params(self._goal_header + block.tobytes(), defer=defer)
+            return ticks
         pack = self._goal_reg.pack
         data = {sid: pack(int(t)) for sid, t in zip(self.ids, ticks)
                 if sid not in self.quarantined and sid not in skip}
-        self.bus.sync_write(GOAL_POSITION, 4, data)
+        self.bus.sync_write(GOAL_POSITION, 4, data, defer=defer)
         return ticks
 
     def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None) -> None:
@@ -166,14 +186,46 @@ class ServoGroup:
             data[sid] = _FEEDBACK_STRUCT.pack(pos, vel, cur, err, temp, volt)
         return GroupRead(data, r.errors, r.missing, r.fast)
 
+    def _fast_feedback(self) -> Feedback | None:
+        """The hot path: one Fast Sync Read of every servo decoded with one numpy view."""
+        raw = self.bus.fast_sync_read_raw(INDIRECT_DATA_1, FEEDBACK_SIZE, self._ids_tuple)
+        if raw is None:
+            return None
+        blocks = np.frombuffer(raw, dtype=_FAST_BLOCK, count=len(self.ids), offset=8)
+        if not np.array_equal(blocks["id"], self._ids_array):
+            _log.debug("fast sync read blocks out of order: %s", blocks["id"])
+            return None
+        err = blocks["error"].astype(np.int64)
+        valid = (err & 0x7F) == 0
+        hw = np.where(valid, blocks["hw"], 0).astype(np.int64)
+        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
+        if not valid.all():
+            self._quarantine([sid for sid, ok in zip(self.ids, valid) if not ok])
+        q = self.map.to_radians(blocks["pos"])
+        qd = self.map.velocity_to_rad_s(blocks["vel"])
+        if not valid.all():
+            q = np.where(valid, q, np.nan)
+            qd = np.where(valid, qd, np.nan)
+        eff = np.where(valid, blocks["cur"], np.nan)
+        temp = np.where(valid, blocks["temp"], np.nan)
+        volt = np.where(valid, blocks["volt"] * VOLTAGE_UNIT_V, np.nan)
+        return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt, valid)
+
     def read_feedback(self) -> Feedback:
         """One group read of the feedback block of every active servo, in joint units."""
         self._cycle += 1
         self.readmitted = set()
         if self.quarantined and self._cycle % self.reping_every == 0:
             self._reping()
-        ids = [i for i in self.ids if i not in self.quarantined]
-        r = self._raw_read(ids)
+        if self.fast_read and self.use_indirect and not self.quarantined:
+            fb = self._fast_feedback()
+            if fb is not None:
+                return fb
+            _log.debug("fast sync read failed; falling back to sync read")
+            r = self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, list(self.ids))
+        else:
+            ids = [i for i in self.ids if i not in self.quarantined]
+            r = self._raw_read(ids)
         n = len(self.ids)
         pos = np.zeros(n, dtype=np.int64)
         vel = np.zeros(n, dtype=np.int64)
@@ -193,15 +245,18 @@ class ServoGroup:
         for sid, e in r.errors.items():
             err[index[sid]] = e
         self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
-        for sid in r.missing:
-            k = index[sid]
+        self._quarantine(r.missing)
+        q = np.where(valid, self.map.to_radians(pos), np.nan)
+        qd = np.where(valid, self.map.velocity_to_rad_s(vel), np.nan)
+        return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt * VOLTAGE_UNIT_V, valid)
+
+    def _quarantine(self, missing: Sequence[int]) -> None:
+        for sid in missing:
+            k = self._index[sid]
             if self.consecutive_failures[k] >= self.quarantine_after and sid not in self.quarantined:
                 _log.warning("servo %d (%s) quarantined after %d missed reads", sid,
                              self.map.servos[k].joint, self.consecutive_failures[k])
                 self.quarantined.add(sid)
-        q = np.where(valid, self.map.to_radians(pos), np.nan)
-        qd = np.where(valid, self.map.velocity_to_rad_s(vel), np.nan)
-        return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt * VOLTAGE_UNIT_V, valid)
 
     def _reping(self) -> None:
         for sid in sorted(self.quarantined):

@@ -19,7 +19,7 @@ import serial
 
 from drivers.errors import CommunicationError
 
-__all__ = ["LatencyTimer", "open_port", "latency_timer_path", "ensure_low_latency"]
+__all__ = ["LatencyTimer", "open_port", "latency_timer_path", "ensure_low_latency", "request_low_latency"]
 
 _log = logging.getLogger(__name__)
 _SYSFS = Path("/sys/bus/usb-serial/devices")
@@ -94,3 +94,20 @@ def open_port(url: str, baud_rate: int, *, timeout_s: float = 0.01) -> serial.Se
                  "no other program holds the port",
         ) from e
     return port
+
+
+def request_low_latency(port: object) -> str:
+    """Ask the serial driver for its low-latency mode (``ASYNC_LOW_LATENCY`` ioctl); returns a note.
+
+    Pseudo-terminals, the ``dxlsim://`` emulator and many USB adapters reject the ioctl; that is
+    reported, not raised (the latency timer matters more on FTDI adapters).
+    """
+    setter = getattr(port, "set_low_latency_mode", None)
+    if setter is None:
+        return "low-latency mode not available on this port type"
+    try:
+        setter(True)
+    except (OSError, ValueError, NotImplementedError) as e:
+        _log.debug("low-latency ioctl rejected: %s", e)
+        return "low-latency ioctl not supported (pseudo-terminal or non-FTDI adapter)"
+    return "low-latency mode on"

@@ -10,6 +10,7 @@ import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -201,9 +202,16 @@ class ServoMap:
         """Upper joint limits [rad], shape (n,)."""
         return np.array([s.max for s in self.servos])
 
+    @cached_property
+    def _direction_offset(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        d = np.array([s.direction for s in self.servos], dtype=float)
+        off = np.array([s.zero_offset for s in self.servos])
+        d.setflags(write=False)
+        off.setflags(write=False)
+        return d, off
+
     def _dir_off(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return (np.array([s.direction for s in self.servos], dtype=float),
-                np.array([s.zero_offset for s in self.servos]))
+        return self._direction_offset
 
     def to_ticks(self, q_rad: NDArray[np.float64]) -> NDArray[np.int64]:
         """Joint angles [rad], shape (..., n) -> goal ticks, same shape (int64)."""

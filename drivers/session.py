@@ -4,19 +4,26 @@ from __future__ import annotations
 
 import itertools
 import logging
+import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from drivers.bus import DynamixelBus
 from drivers.clock import Clock, MonotonicClock
 from drivers.group import ServoGroup
-from drivers.port import LatencyTimer, ensure_low_latency, open_port
+from drivers.port import LatencyTimer, ensure_low_latency, open_port, request_low_latency
 from drivers.servo_map import ServoMap
 
-__all__ = ["Connection", "connect", "mock_url_for"]
+__all__ = ["Connection", "connect", "mock_bus_for", "mock_url_for"]
+
+if TYPE_CHECKING:
+    from drivers.mockbus import MockBus, Plant
 
 _log = logging.getLogger(__name__)
 _counter = itertools.count()
+_RX_MARGIN_S = 0.004  # [s] reply timeout slack on a USB adapter (latency timer 1 ms + firmware)
+_PTY_RX_MARGIN_S = 0.02  # [s] on a pseudo-terminal: the emulator process may be scheduled late
 
 
 @dataclass
@@ -41,13 +48,19 @@ class Connection:
         self.close()
 
 
-def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
-                 wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0) -> str:
-    """Attach an emulated bus holding the servos of ``servo_map`` and return its ``dxlsim://`` URL.
+def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
+                 wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
+                 plant: "Plant | None" = None) -> "MockBus":
+    """An emulated bus holding the servos of ``servo_map`` (at the map's baud rate).
 
     Args:
-        initial_rad: starting joint angles by joint name [rad] (others start at 0, clamped).
+        initial_rad: starting joint angles by joint name [rad] (others start at 0, clamped to
+            the map's limits).
         wire_timing: replies take their wire time at the map's baud rate.
+        clock: the bus clock (default: real time).
+        return_delay_units: Return Delay Time of every servo (2 us units).
+        plant: what moves the shafts (default: the kinematic servo model); a physics twin
+            satisfies :class:`drivers.mockbus.Plant` and works in the servo frame.
     """
     import drivers.mockbus as mb
 
@@ -55,17 +68,31 @@ def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
     for s in servo_map.servos:
         q = (initial_rad or {}).get(s.joint, 0.0)
         init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
-    bus = mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
-                     clock=clock or MonotonicClock(), wire_timing=wire_timing,
-                     initial_position_ticks=init, return_delay_units=return_delay_units)
+    return mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
+                      clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
+                      initial_position_ticks=init, return_delay_units=return_delay_units)
+
+
+def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
+                 wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
+                 plant: "Plant | None" = None) -> str:
+    """Attach an emulated bus (see :func:`mock_bus_for`) and return its ``dxlsim://`` URL."""
+    import drivers.mockbus as mb
+
+    bus = mock_bus_for(servo_map, initial_rad=initial_rad, wire_timing=wire_timing, clock=clock,
+                       return_delay_units=return_delay_units, plant=plant)
     return mb.attach(f"{servo_map.robot or 'bus'}{next(_counter)}", bus)
 
 
 def connect(servo_map: ServoMap, port: str, *, baud_rate: int | None = None,
-            clock: Clock | None = None) -> Connection:
+            clock: Clock | None = None, rx_margin_s: float | None = None) -> Connection:
     """Open ``port`` (device path or pyserial URL) for ``servo_map``'s servos.
 
     The adapter's latency timer is lowered where possible (FTDI), and reported otherwise.
+
+    Args:
+        rx_margin_s: slack on every reply timeout [s]; default 4 ms, or 20 ms on a
+            pseudo-terminal, whose other end is a program sharing the CPU (the emulator).
     """
     baud = baud_rate or servo_map.bus.baud_rate
     latency = ensure_low_latency(port)
@@ -77,6 +104,10 @@ def connect(servo_map: ServoMap, port: str, *, baud_rate: int | None = None,
         clock = emu.clock if emu is not None else None
     clock = clock or MonotonicClock()
     serial_port = open_port(port, baud)
-    bus = DynamixelBus(serial_port, baud_rate=baud, clock=clock,
+    if "://" not in port:
+        latency = replace(latency, note=f"{latency.note}; {request_low_latency(serial_port)}")
+    if rx_margin_s is None:
+        rx_margin_s = _PTY_RX_MARGIN_S if os.path.realpath(port).startswith("/dev/pts/") else _RX_MARGIN_S
+    bus = DynamixelBus(serial_port, baud_rate=baud, clock=clock, rx_margin_s=rx_margin_s,
                        return_delay_s=servo_map.bus.return_delay_time_us * 1e-6 + 50e-6)
     return Connection(ServoGroup(bus, servo_map), port, latency)

@@ -218,3 +218,15 @@ def test_that_timing_stats_see_slow_replies(servo_map: ServoMap) -> None:
     r.mock.faults.at(r.clock.now() + 0.2, lambda bus: setattr(bus.faults, "extra_latency_s", 0.003))
     rep = _run(r)
     assert rep.completed and rep.stats.work_max_s >= 0.003 and rep.stats.deadline_misses == 0
+
+
+def test_that_a_stall_delays_the_motion_instead_of_replaying_missed_cycles_fast(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    stall_at = r.clock.now() + 0.3
+    r.mock.faults.at(stall_at, lambda bus: bus.clock.advance(0.05))  # type: ignore[attr-defined]
+    rep = _run(r)
+    assert rep.completed, rep.faults
+    assert rep.stats.resyncs == 1
+    assert rep.stats.jitter_max_s >= 0.03  # the stall hit mid-cycle: the next start is late
+    assert rep.stats.jitter_p50_s < 0.001  # after the stall the schedule is back on its period
+    _assert_goals_safe(r)

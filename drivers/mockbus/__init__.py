@@ -2,6 +2,9 @@
 
 Importing this package registers the pyserial URL handler ``dxlsim://`` (see
 :mod:`drivers.mockbus.protocol_dxlsim`), so ``serial.serial_for_url("dxlsim://NAME")`` works.
+:mod:`drivers.mockbus.pty_server` serves a bus on a pseudo-terminal for any program
+(``robot-rise mockbus serve``); a physics twin (``robot_rise.twin.MujocoTwin``) plugs in as the
+:class:`Plant`.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from drivers.mockbus.bus import BAUD_BY_INDEX, MockBus, Reply
 from drivers.mockbus.faults import FaultInjector, ScheduledFault
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoCommand, ServoMotion
 from drivers.mockbus.protocol_dxlsim import attach, attached, detach, parse_ids
+from drivers.mockbus.pty_server import PtyServer, PtyServerProcess, spawn_pty_server
 from drivers.mockbus.servo import EmulatedServo, ThermalModel
 
 __all__ = [
@@ -30,6 +34,9 @@ __all__ = [
     "attached",
     "detach",
     "parse_ids",
+    "PtyServer",
+    "PtyServerProcess",
+    "spawn_pty_server",
     "URL_SCHEME",
 ]
 

@@ -39,6 +39,7 @@ _log = logging.getLogger(__name__)
 BAUD_BY_INDEX = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000,
                  6: 4_000_000, 7: 4_500_000}
 _MAX_STEP_S = 0.01  # [s] largest plant integration step
+_PLANT_PERIOD_S = 0.002  # [s] smallest plant step (500 Hz, the MuJoCo twin's physics rate)
 
 
 @dataclass(frozen=True)
@@ -63,13 +64,15 @@ class MockBus:
         initial_position_ticks: initial shaft positions by ID.
         firmware_version: firmware every servo reports.
         boot_time_s: how long a rebooting servo stays silent [s].
+        plant_period_s: shortest plant step [s]; present values are at most this old.
     """
 
     def __init__(self, servos: Mapping[int, str], *, baud_rate: int = 1_000_000,
                  clock: Clock | None = None, plant: Plant | None = None,
                  faults: FaultInjector | None = None, wire_timing: bool = False,
                  return_delay_units: int = 0, initial_position_ticks: Mapping[int, int] | None = None,
-                 firmware_version: int = 46, boot_time_s: float = 0.05) -> None:
+                 firmware_version: int = 46, boot_time_s: float = 0.05,
+                 plant_period_s: float = _PLANT_PERIOD_S) -> None:
         index = {v: k for k, v in BAUD_BY_INDEX.items()}
         if baud_rate not in index:
             raise ValueError(f"baud_rate {baud_rate} not in {sorted(index)}")
@@ -78,6 +81,7 @@ class MockBus:
         self.faults = faults or FaultInjector()
         self.wire_timing = wire_timing
         self.boot_time_s = boot_time_s
+        self.plant_period_s = plant_period_s
         init = dict(initial_position_ticks or {})
         self.servos: dict[int, EmulatedServo] = {}
         for sid, model in servos.items():
@@ -91,6 +95,7 @@ class MockBus:
         self.plant = plant
         self._reader = PacketReader()
         self._last_s = self.clock.now()
+        self._wire_free_s = self._last_s  # [s] when the last packet or reply leaves the wire
         for s in self.servos.values():
             s.start_s = self._last_s
             s.watchdog_last_feed_s = self._last_s
@@ -102,7 +107,9 @@ class MockBus:
     def advance(self, now_s: float | None = None) -> None:
         """Advance plant, temperatures, scheduled faults and watchdogs to ``now_s``."""
         now = self.clock.now() if now_s is None else now_s
-        while self._last_s < now:
+        # the plant moves in steps of at least plant_period_s (a servo's own control period):
+        # stepping 20 servos on every received packet would cost more than the wire time
+        while now - self._last_s >= self.plant_period_s:
             step_end = min(now, self._last_s + _MAX_STEP_S)
             for f in self.faults.due(step_end):
                 f.action(self)
@@ -139,7 +146,9 @@ class MockBus:
         self.advance(now)
         self._reader.feed(data)
         replies: list[Reply] = []
-        t_free = now  # when the wire is free for the next reply
+        # the wire is half duplex: a packet starts once the previous packets (and replies)
+        # have left it, so back-to-back instructions queue behind each other
+        t_free = max(now, self._wire_free_s) if self.wire_timing else now
         while True:
             frame = self._reader.next_frame()
             if frame is None:
@@ -153,7 +162,8 @@ class MockBus:
             self.packets_received += 1
             if len(self.log) < self._log_limit:
                 self.log.append(packet)
-            t_free = max(t_free, now + (wire_time_s(len(frame), self.baud_rate) if self.wire_timing else 0.0))
+            if self.wire_timing:
+                t_free += wire_time_s(len(frame), self.baud_rate)
             for sid, reply in self._handle(packet, now):
                 servo = self.servos.get(sid)
                 delay = servo.get("return_delay_time") * 2e-6 if (servo and self.wire_timing) else 0.0
@@ -163,6 +173,8 @@ class MockBus:
                 if mangled is None:
                     continue
                 replies.append(Reply(t_free + self.faults.extra_latency_s, mangled))
+        if self.wire_timing:
+            self._wire_free_s = t_free
         return replies
 
     def _listening(self, sid: int, now: float) -> EmulatedServo | None:

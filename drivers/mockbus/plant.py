@@ -5,6 +5,9 @@ each shaft's motion. Angles here are in the *servo frame*: ``(ticks - 2048) * 2 
 (no direction or zero offset; the CLI converts when it wires a physics twin through the servo map).
 
 The default :class:`KinematicPlant` is a first-order servo with a speed limit: fast, no MuJoCo.
+The physics twin ``robot_rise.twin.MujocoTwin`` satisfies :class:`Plant` structurally (this
+package never imports ``robot_rise``); ``robot-rise execute --mock --twin`` and
+``robot-rise mockbus serve --twin`` wire it in.
 """
 
 from __future__ import annotations

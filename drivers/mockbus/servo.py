@@ -16,6 +16,8 @@ Rules emulated (ROBOTIS e-manual, X series):
 from __future__ import annotations
 
 import logging
+import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from drivers.control_table import (
@@ -41,6 +43,7 @@ _log = logging.getLogger(__name__)
 
 _GOAL_REGISTERS = ("goal_pwm", "goal_current", "goal_velocity", "goal_position")
 _INDIRECT_BLOCKS = ((INDIRECT_DATA_1, INDIRECT_ADDRESS_1), (634, 578))
+_STRUCT_CODE = {1: "B", 2: "H", 4: "I"}  # unsigned struct codes by register size
 
 
 @dataclass(frozen=True)
@@ -78,9 +81,15 @@ class EmulatedServo:
         self.table = table
         self.thermal = thermal or ThermalModel()
         self._reg_at_byte: list[Register | None] = [None] * MEMORY_SIZE
+        # name -> (reader, writer, address, mask): struct codecs precomputed for speed
+        self._fields: dict[str, tuple[struct.Struct, struct.Struct, int, int]] = {}
         for reg in table.registers.values():
             for a in range(reg.address, reg.address + reg.size):
                 self._reg_at_byte[a] = reg
+            code = _STRUCT_CODE[reg.size]
+            self._fields[reg.name] = (struct.Struct("<" + (code.lower() if reg.signed else code)),
+                                      struct.Struct("<" + code), reg.address, (1 << (8 * reg.size)) - 1)
+        self._indirect_cache: dict[tuple[int, int], tuple[int, ...]] = {}
         self.mem = table.default_memory()
         self._set("id", servo_id)
         self._set("baud_rate", baud_index)
@@ -99,15 +108,17 @@ class EmulatedServo:
 
     # ---- raw memory ----------------------------------------------------------------
     def _set(self, name: str, value: int) -> None:
-        reg = self.table.registers[name]
-        a, n = reg.address, reg.size
-        self.mem[a : a + n] = (int(value) & ((1 << (8 * n)) - 1)).to_bytes(n, "little")
+        _, writer, a, mask = self._fields[name]
+        writer.pack_into(self.mem, a, int(value) & mask)
 
     def get(self, name: str) -> int:
         """Integer value of register ``name``."""
-        reg = self.table.registers.get(name) or self.table[name]
-        a = reg.address
-        return int.from_bytes(self.mem[a : a + reg.size], "little", signed=reg.signed)
+        try:
+            reader, _, address, _ = self._fields[name]
+        except KeyError:
+            reg = self.table[name]  # raises, naming the valid registers
+            return int.from_bytes(self.mem[reg.address : reg.address + reg.size], "little", signed=reg.signed)
+        return reader.unpack_from(self.mem, address)[0]
 
     @property
     def id(self) -> int:
@@ -136,23 +147,34 @@ class EmulatedServo:
     def _is_indirect(self, address: int, length: int) -> bool:
         return any(address < d + INDIRECT_COUNT and address + length > d for d, _ in _INDIRECT_BLOCKS)
 
+    def _targets(self, address: int, length: int) -> tuple[int, ...]:
+        """Memory bytes behind ``address .. address + length`` (indirect data resolved), cached
+        until an Indirect Address register changes."""
+        key = (address, length)
+        targets = self._indirect_cache.get(key)
+        if targets is None:
+            targets = tuple(self._resolve(a) for a in range(address, address + length))
+            self._indirect_cache[key] = targets
+        return targets
+
     def read(self, address: int, length: int) -> tuple[int, bytes]:
         """Read ``length`` bytes; returns (status error byte, data)."""
         if length <= 0 or address < 0 or address + length > MEMORY_SIZE:
             return StatusError.ACCESS | self.alert, b""
         if not self._is_indirect(address, length):
             return self.alert, bytes(self.mem[address : address + length])
-        out = bytearray()
-        for a in range(address, address + length):
-            t = self._resolve(a)
-            out.append(self.mem[t] if 0 <= t < MEMORY_SIZE else 0)
-        return self.alert, bytes(out)
+        mem = self.mem
+        return self.alert, bytes([mem[t] if 0 <= t < MEMORY_SIZE else 0 for t in self._targets(address, length)])
 
     def write(self, address: int, data: bytes, now_s: float = 0.0) -> int:
         """Apply a write with the firmware's checks; returns the status error byte."""
         if not data or address < 0 or address + len(data) > MEMORY_SIZE:
             return StatusError.ACCESS | self.alert
-        targets = [self._resolve(a) for a in range(address, address + len(data))]
+        reg0 = self._reg_at_byte[address]
+        if (reg0 is not None and reg0.address == address and reg0.size == len(data)
+                and not self._is_indirect(address, len(data))):
+            return self._write_register(reg0, bytes(data), now_s)
+        targets = list(self._targets(address, len(data)))
         regs: dict[str, Register] = {}
         for t in targets:
             reg = self._reg_at_byte[t] if 0 <= t < MEMORY_SIZE else None
@@ -166,33 +188,56 @@ class EmulatedServo:
             new[t] = b
         # value checks on complete registers
         for name, reg in regs.items():
-            value = reg.decode(new[reg.address : reg.address + reg.size])
-            if name in _GOAL_REGISTERS and self.watchdog_tripped:
-                return StatusError.DATA_RANGE | self.alert
-            if name == "goal_position" and self.get("operating_mode") == 3:
-                lo, hi = self.get("min_position_limit"), self.get("max_position_limit")
-                if not lo <= value <= hi:
-                    return StatusError.DATA_LIMIT | self.alert
-            if name == "operating_mode" and value not in self.table.operating_modes:
-                return StatusError.DATA_RANGE | self.alert
-            if name == "torque_enable":
-                if value not in (0, 1):
-                    return StatusError.DATA_RANGE | self.alert
-                if value == 1 and (self.hardware_error & self.get("shutdown")):
-                    return StatusError.RESULT_FAIL | self.alert
-            if name == "bus_watchdog" and not (value == 0 or 1 <= value <= 127):
-                return StatusError.DATA_RANGE | self.alert
-            if name == "goal_pwm" and abs(value) > self.get("pwm_limit"):
-                return StatusError.DATA_LIMIT | self.alert
+            err = self._value_error(name, reg.decode(new[reg.address : reg.address + reg.size]))
+            if err:
+                return err
         was_on = self.torque_on
         self.mem[:] = new
+        self._after_write(regs, was_on, now_s)
+        return self.alert
+
+    def _write_register(self, reg: Register, data: bytes, now_s: float) -> int:
+        """Fast path of :meth:`write`: exactly one whole, directly addressed register."""
+        if not reg.writable or (reg.eeprom and self.torque_on):
+            return StatusError.ACCESS | self.alert
+        err = self._value_error(reg.name, reg.decode(data))
+        if err:
+            return err
+        was_on = self.torque_on
+        self.mem[reg.address : reg.address + reg.size] = data
+        self._after_write({reg.name: reg}, was_on, now_s)
+        return self.alert
+
+    def _value_error(self, name: str, value: int) -> int:
+        """Status error byte if the firmware refuses ``value`` for register ``name``, else 0."""
+        if name in _GOAL_REGISTERS and self.watchdog_tripped:
+            return StatusError.DATA_RANGE | self.alert
+        if name == "goal_position" and self.get("operating_mode") == 3:
+            lo, hi = self.get("min_position_limit"), self.get("max_position_limit")
+            if not lo <= value <= hi:
+                return StatusError.DATA_LIMIT | self.alert
+        if name == "operating_mode" and value not in self.table.operating_modes:
+            return StatusError.DATA_RANGE | self.alert
+        if name == "torque_enable":
+            if value not in (0, 1):
+                return StatusError.DATA_RANGE | self.alert
+            if value == 1 and (self.hardware_error & self.get("shutdown")):
+                return StatusError.RESULT_FAIL | self.alert
+        if name == "bus_watchdog" and not (value == 0 or 1 <= value <= 127):
+            return StatusError.DATA_RANGE | self.alert
+        if name == "goal_pwm" and abs(value) > self.get("pwm_limit"):
+            return StatusError.DATA_LIMIT | self.alert
+        return 0
+
+    def _after_write(self, regs: Mapping[str, Register], was_on: bool, now_s: float) -> None:
         if "bus_watchdog" in regs:
             if self.get("bus_watchdog") == 0:
                 self.watchdog_tripped = False
             self.watchdog_last_feed_s = now_s
         if "torque_enable" in regs and self.torque_on and not was_on:
             self.watchdog_last_feed_s = now_s
-        return self.alert
+        if any(name.startswith("indirect_address") for name in regs):
+            self._indirect_cache.clear()
 
     # ---- time evolution ------------------------------------------------------------
     def feed_watchdog(self, now_s: float) -> None:
@@ -200,8 +245,10 @@ class EmulatedServo:
 
     def watchdog_deadline(self) -> float | None:
         """Time [s] at which the watchdog trips if nothing arrives, or ``None`` if not armed."""
+        if self.mem[64] != 1 or self.watchdog_tripped:
+            return None
         value = self.get("bus_watchdog")
-        if self.torque_on and not self.watchdog_tripped and 1 <= value <= 127:
+        if 1 <= value <= 127:
             return self.watchdog_last_feed_s + value * WATCHDOG_UNIT_S
         return None
 
@@ -214,50 +261,60 @@ class EmulatedServo:
 
     def command(self) -> ServoCommand:
         """The command this servo gives its shaft now."""
-        profile = self.get("profile_velocity")
-        vmax = self.table.no_load_speed_rad_s
+        get = self.get
+        table = self.table
+        profile = get("profile_velocity")
+        vmax = table.no_load_speed_rad_s
         if profile > 0:
             vmax = min(vmax, profile * VELOCITY_UNIT_RAD_S)
-        pwm_limit = max(1, self.get("pwm_limit"))
-        pwm_fraction = max(0.0, min(1.0, abs(self.get("goal_pwm")) / pwm_limit))
-        goal = (self.get("goal_position") - CENTER_TICKS) * RAD_PER_TICK
-        position_mode = self.get("operating_mode") in (3, 4, 5)
-        if not position_mode:
+        pwm_limit = max(1, get("pwm_limit"))
+        pwm_fraction = max(0.0, min(1.0, abs(get("goal_pwm")) / pwm_limit))
+        if get("operating_mode") in (3, 4, 5):
+            goal = (get("goal_position") - CENTER_TICKS) * RAD_PER_TICK
+        else:
             goal = self.position_rad
-        stiffness = self.table.stall_torque_nm / 0.22 * self.get("position_p_gain") / 800.0
-        return ServoCommand(self.torque_on, goal, vmax, pwm_fraction, self.table.stall_torque_nm, stiffness)
+        stiffness = table.stall_torque_nm / 0.22 * get("position_p_gain") / 800.0
+        return ServoCommand(self.mem[64] == 1, goal, vmax, pwm_fraction, table.stall_torque_nm, stiffness)
 
     def apply_motion(self, motion: ServoMotion, dt_s: float, now_s: float, input_voltage_v: float,
                      heating_gain: float = 1.0) -> None:
         """Update present registers, temperature and hardware errors after a plant step."""
-        self.position_rad = motion.position_rad
-        ticks = int(round(motion.position_rad / RAD_PER_TICK)) + CENTER_TICKS
-        self._set("present_position", ticks)
-        self._set("present_velocity", int(round(motion.velocity_rad_s / VELOCITY_UNIT_RAD_S)))
-        stall = self.table.stall_torque_nm
-        if self.table.current_unit_a is not None:
+        mem, fields = self.mem, self._fields
+
+        def put(name: str, value: int) -> None:
+            _, writer, address, mask = fields[name]
+            writer.pack_into(mem, address, value & mask)
+
+        position, velocity, torque = motion.position_rad, motion.velocity_rad_s, motion.torque_nm
+        self.position_rad = position
+        put("present_position", int(round(position / RAD_PER_TICK)) + CENTER_TICKS)
+        put("present_velocity", int(round(velocity / VELOCITY_UNIT_RAD_S)))
+        table = self.table
+        stall = table.stall_torque_nm
+        if table.current_unit_a is not None:
             # linear torque-current model with 2.3 A at stall (XM430 datasheet)
-            amps = motion.torque_nm / stall * 2.3
-            self._set("present_current", int(round(amps / self.table.current_unit_a)))
+            put("present_current", int(round(torque / stall * 2.3 / table.current_unit_a)))
         else:
-            self._set("present_load", int(round(1000 * motion.torque_nm / stall)))
-        self._set("present_pwm", int(round(885 * max(-1.0, min(1.0, motion.torque_nm / stall)))))
-        self._set("moving", int(abs(motion.velocity_rad_s) > 0.02))
-        self._set("realtime_tick", int((now_s - self.start_s) * 1000) % 32768)
+            put("present_load", int(round(1000 * torque / stall)))
+        put("present_pwm", int(round(885 * max(-1.0, min(1.0, torque / stall)))))
+        put("moving", int(abs(velocity) > 0.02))
+        put("realtime_tick", int((now_s - self.start_s) * 1000) % 32768)
         th = self.thermal
         if dt_s > 0:
-            dT = heating_gain * th.heating_k_per_nm2_s * motion.torque_nm**2 - (
+            dT = heating_gain * th.heating_k_per_nm2_s * torque * torque - (
                 self.temperature_c - th.ambient_c) / th.time_constant_s
             self.temperature_c += dT * dt_s
-        self._set("present_temperature", max(0, min(255, int(round(self.temperature_c)))))
-        self._set("present_input_voltage", int(round(input_voltage_v * 10)))
-        bits = 0
-        if self.temperature_c > self.get("temperature_limit"):
-            bits |= HardwareError.OVERHEATING
+        put("present_temperature", max(0, min(255, int(round(self.temperature_c)))))
         v10 = input_voltage_v * 10
-        if not self.get("min_voltage_limit") <= v10 <= self.get("max_voltage_limit"):
+        put("present_input_voltage", int(round(v10)))
+        bits = 0
+        get = self.get
+        if self.temperature_c > get("temperature_limit"):
+            bits |= HardwareError.OVERHEATING
+        if not get("min_voltage_limit") <= v10 <= get("max_voltage_limit"):
             bits |= HardwareError.INPUT_VOLTAGE
-        self.raise_hardware_error(bits)
+        if bits:
+            self.raise_hardware_error(bits)
 
     def raise_hardware_error(self, bits: int) -> None:
         """Latch hardware error ``bits``; shut down if Shutdown says so."""
@@ -274,6 +331,7 @@ class EmulatedServo:
         """Reset RAM to defaults (EEPROM kept), clear errors; silent for ``boot_time_s``."""
         defaults = self.table.default_memory()
         self.mem[EEPROM_END:] = defaults[EEPROM_END:]
+        self._indirect_cache.clear()
         self.mem[70] = 0
         ticks = int(round(self.position_rad / RAD_PER_TICK)) + CENTER_TICKS
         self._set("present_position", ticks)

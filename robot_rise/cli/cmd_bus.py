@@ -15,18 +15,22 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
     p = bsub.add_parser("bus", help="cycle rate vs wire limit, host CPU per cycle, jitter at 100 Hz",
                         formatter_class=Formatter, epilog="example:\n  robot-rise bench bus --cycles 500")
     p.add_argument("--cycles", type=int, default=500, help="back-to-back cycles per baud rate")
+    p.add_argument("--jitter-seconds", type=float, default=3.0,
+                   help="seconds of 100 Hz streaming for the jitter figure (0: skip)")
+    p.add_argument("--transport", choices=["pty", "inprocess"], default="pty",
+                   help="emulator in a child process on a pseudo-terminal (default) or in-process (dxlsim://)")
+    p.add_argument("--baud", type=int, action="append",
+                   help="baud rate(s) to measure [bit/s] (default: 1000000 and 4000000)")
+    p.add_argument("--rt-priority", type=int, metavar="P",
+                   help="run under SCHED_FIFO priority P (1..99; needs root or CAP_SYS_NICE), like chrt -f P")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.bench import bench_bus
+    from drivers.bench import bench_bus, format_result
 
-    for baud in (1_000_000, 4_000_000):
-        r = bench_bus(baud, cycles=args.cycles, jitter_s=3.0 if baud == 1_000_000 else 0.0)
-        line = (f"{baud / 1e6:.0f} Mbps, {r.n_servos} servos: {r.cycle_rate_hz:.0f} Hz measured vs "
-                f"{r.wire_limit_hz:.0f} Hz wire limit (ratio {r.cycle_rate_hz / r.wire_limit_hz:.2f}); "
-                f"host CPU {r.host_cpu_per_cycle_s * 1e3:.3f} ms/cycle")
-        if r.jitter_p99_at_100hz_s is not None:
-            line += f"; jitter p99 at 100 Hz {r.jitter_p99_at_100hz_s * 1e3:.3f} ms"
-        print(line)
+    for baud in args.baud or (1_000_000, 4_000_000):
+        r = bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds, transport=args.transport,
+                      realtime_priority=args.rt_priority)
+        print(format_result(r))
     return 0

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from robot_rise.cli._common import Formatter
+from robot_rise.errors import RobotRiseError
 
 EPILOG = """examples:
   robot-rise execute out/demo/getup.json --mock --yes
+  robot-rise execute out/demo/getup.json --mock --twin --yes   # does the simulated robot stand up?
   robot-rise execute getup.json --port /dev/ttyUSB0 --speed 0.5 --approach 3 --log run.csv
 exit code: 0 only if the whole trajectory ran without a fault; 1 on a fault; 2 on refused input.
 """
@@ -33,22 +37,43 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="run a trajectory whose report does not say it was proven on this robot model")
     p.add_argument("--yes", action="store_true", help="do not ask for confirmation")
     p.add_argument("--log", metavar="FILE", help="CSV log of commanded vs present per cycle")
+    p.add_argument("--rt-priority", type=int, metavar="P",
+                   help="stream under SCHED_FIFO priority P (1..99; needs root or CAP_SYS_NICE): less jitter on a busy host")
+    p.add_argument("--twin", action="store_true",
+                   help="with --mock: the servos move a MuJoCo simulation of the robot (does it stand?)")
+    p.add_argument("--scene", help="scene of the twin (default: the scene the report says it was proven in, else flat)")
+    p.add_argument("--realtime", action="store_true",
+                   help="with --twin: run on the wall clock (default: a simulated clock, as fast as the CPU "
+                        "allows and independent of machine load)")
     p.set_defaults(func=run)
 
 
-def _proven(report: dict, robot_name: str) -> tuple[bool, str]:
-    # TODO(lead): align with the filter's report keys; accepted: {"proven": true} and, when
-    # present, {"robot": name} matching this robot.
+def _proven(report: dict, robot_name: str, robot_digest: Callable[[], str]) -> tuple[bool, str]:
+    """Whether the trajectory's report (written by the dynamics filter) proves it for this robot.
+
+    Keys read: ``proven`` (true only if the judge passed within limits), ``robot`` (name),
+    ``robot_digest`` (sha256 of the robot files, checked when present), ``scene``.
+    """
     if report.get("proven") is not True:
-        return False, "the trajectory's report does not say it was proven (report.proven != true)"
-    if report.get("robot", robot_name) != robot_name:
-        return False, f"proven on robot {report.get('robot')!r}, not {robot_name!r}"
+        return False, "the trajectory's report does not say it was proven (report.proven is not true)"
+    name = report.get("robot")
+    if name is None:
+        return False, "the trajectory's report does not name the robot it was proven on (report.robot missing)"
+    if name != robot_name:
+        return False, f"the trajectory was proven on robot {name!r}, not {robot_name!r}"
+    digest = report.get("robot_digest")
+    if digest is not None:
+        ours = robot_digest()
+        if digest != ours:
+            return False, (f"the trajectory was proven on another version of robot {name!r}: the robot files "
+                           f"changed since (report.robot_digest {str(digest)[:12]}..., loaded robot {ours[:12]}...)")
     return True, ""
 
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from drivers.clock import FakeClock
     from drivers.executor import Executor, ExecutorConfig
     from drivers.safety import SafetyLimits, StopPolicy
     from drivers.servo_map import load_servo_map
@@ -60,20 +85,40 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     traj = read_trajectory(args.trajectory)
     if traj.robot and traj.robot != robot.name:
-        print(f"error: trajectory is for robot {traj.robot!r}, not {robot.name!r}", file=sys.stderr)
-        return 2
-    ok, why = _proven(dict(traj.report), robot.name)
-    if not ok and not args.allow_unproven:
-        print(f"error: {why}", file=sys.stderr)
-        print("hint: pass --allow-unproven to run it anyway", file=sys.stderr)
-        return 2
+        raise RobotRiseError(f"trajectory is for robot {traj.robot!r}, not {robot.name!r}",
+                             hint="pass --robot DIR of the robot it was made for")
+    if args.twin and not args.mock:
+        raise RobotRiseError("--twin needs --mock (the twin moves emulated servos)")
+    ok, why = _proven(dict(traj.report), robot.name, robot.digest)
+    if not ok:
+        if not args.allow_unproven:
+            raise RobotRiseError(why, hint="run it through the dynamics filter, or pass --allow-unproven to run it anyway")
+        print(f"warning: {why}; running anyway (--allow-unproven)", file=sys.stderr)
+    else:
+        scene = traj.report.get("scene")
+        print(f"proven on robot {robot.name}" + (f" in scene {scene}" if scene else ""))
     smap = load_servo_map(robot.directory / "servos.toml")
     port = args.port
+    twin = None
+    clock = None
     if args.mock:
-        port = mock_url_for(smap, initial_rad=dict(zip(traj.joint_names, np.asarray(traj.q)[0])))
+        if args.twin:
+            from robot_rise.twin import MujocoTwin
+
+            scene = args.scene or traj.report.get("scene") or "flat"
+            twin = MujocoTwin(robot, scene, start=traj.start)
+            if not args.realtime:
+                clock = FakeClock()
+            print(f"physics twin: robot {robot.name} in scene {scene}; "
+                  + ("wall clock" if args.realtime else "simulated clock (timing figures are not wall-clock)"))
+            initial = dict(traj.start.joints)
+        else:
+            initial = dict(zip(traj.joint_names, np.asarray(traj.q)[0]))
+        port = mock_url_for(smap, initial_rad=initial, plant=twin, clock=clock)
     config = ExecutorConfig(rate_hz=args.rate, speed=args.speed, approach_s=args.approach,
                             stop_policy=StopPolicy(args.stop),
-                            log_path=Path(args.log) if args.log else None)
+                            log_path=Path(args.log) if args.log else None,
+                            realtime_priority=args.rt_priority)
     with connect(smap, port, baud_rate=args.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
@@ -100,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
     s = rep.stats
     print(f"cycles {s.cycles} at {1 / s.period_s:.0f} Hz; jitter p50 {s.jitter_p50_s * 1e3:.3f} ms, "
           f"p99 {s.jitter_p99_s * 1e3:.3f} ms, max {s.jitter_max_s * 1e3:.3f} ms; "
-          f"deadline misses {s.deadline_misses}; cycle work {s.work_mean_s * 1e3:.2f} ms mean")
+          f"deadline misses {s.deadline_misses}; cycle work {s.work_mean_s * 1e3:.2f} ms mean"
+          + (f"; {s.resyncs} stall(s) re-anchored the schedule (motion delayed)" if s.resyncs else ""))
     print(f"max tracking error {rep.max_tracking_error_rad:.4f} rad; safety-clamped cycles {rep.clamped_cycles}")
     for f in rep.faults:
         joint = smap.servos[f.index].joint if 0 <= f.index < len(smap) else "bus"
@@ -110,6 +156,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"recovery: {line}")
     if rep.log_path:
         print(f"log: {rep.log_path}")
+    if twin is not None:
+        st = twin.state()
+        print(f"twin: {st.t_s:.1f} s simulated; torso tilt {math.degrees(st.tilt_rad):.1f} deg, torso height "
+              f"{st.torso_height_m:.3f} m (stand {st.stand_height_m:.3f} m): "
+              + ("upright" if st.upright else "NOT upright"))
     print("completed" if rep.completed else f"stopped ({rep.stop_policy.value})")
     if rep.interrupted:
         return 130

@@ -157,9 +157,11 @@ def run_read_posture(args: argparse.Namespace) -> int:
         conn.group.use_indirect = False
         fb = conn.group.read_feedback()
         if not fb.valid.all():
+            from drivers.errors import CommunicationError
+
             missing = [s.id for s, ok in zip(smap.servos, fb.valid) if not ok]
-            print(f"error: no position from servo(s) {missing}")
-            return 2
+            raise CommunicationError(f"no present position from servo(s) {missing}; no posture written",
+                                     hint="check power and cabling (robot-rise servos status --port PORT)")
     joints = {name: float(v) for name, v in zip(robot.joint_names, robot.stand_qpos[7:])}
     for s, q in zip(smap.servos, fb.position_rad):
         joints[s.joint] = float(q)

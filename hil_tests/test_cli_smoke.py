@@ -1,0 +1,134 @@
+"""Operator commands end to end on the emulated bus: servos, execute, mockbus serve."""
+
+from __future__ import annotations
+
+import re
+import select
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import drivers.mockbus as mb
+from drivers.servo_map import load_servo_map
+from drivers.session import mock_url_for
+from robot_rise.cli import main
+from robot_rise.model import Robot, load_robot
+from robot_rise.trajectory import Trajectory, write_trajectory
+from robot_rise.twin import stand_posture
+
+
+@pytest.fixture(scope="module")
+def robot() -> Robot:
+    return load_robot()
+
+
+def _trajectory(robot: Robot, path: Path, report: dict) -> Path:
+    """0.4 s of arm motion from the stand keyframe."""
+    start = stand_posture(robot)
+    t = np.linspace(0.0, 0.4, 5)
+    q = np.repeat(start.joint_vector(robot.joint_names)[None, :], t.size, axis=0)
+    k = robot.joint_names.index("r_sho_pitch")
+    q[:, k] += np.linspace(0.0, 0.2, t.size)
+    write_trajectory(path, Trajectory(robot.name, robot.joint_names, t, q, start, report))
+    return path
+
+
+def _proven_report(robot: Robot, **overrides: object) -> dict:
+    return {"proven": True, "robot": robot.name, "robot_digest": robot.digest(), "scene": "flat", **overrides}
+
+
+def test_that_servos_scan_on_the_mock_finds_every_mapped_servo(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["servos", "scan", "--mock"]) == 0
+    out = capsys.readouterr().out
+    assert "20 servo(s) answered; 0 of the map missing" in out
+    assert "XM430-W350" in out
+
+
+def test_that_execute_on_the_mock_streams_a_proven_trajectory_and_exits_zero(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))
+    log = tmp_path / "run.csv"
+    assert main(["execute", str(path), "--mock", "--yes", "--log", str(log)]) == 0
+    out = capsys.readouterr().out
+    assert "proven on robot op3 in scene flat" in out
+    assert "completed" in out
+    rows = log.read_text().splitlines()
+    assert rows[0].startswith("cycle,t_s,cmd_") and len(rows) > 40  # >= 0.4 s at 100 Hz
+
+
+def test_that_execute_refuses_an_unproven_trajectory_with_a_hint(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "raw.json", {"proven": False, "robot": robot.name})
+    assert main(["execute", str(path), "--mock", "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "error: the trajectory's report does not say it was proven" in err
+    assert "--allow-unproven" in err
+
+
+def test_that_execute_refuses_a_report_without_the_robot_name(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "anon.json", {"proven": True})
+    assert main(["execute", str(path), "--mock", "--yes"]) == 2
+    assert "report.robot missing" in capsys.readouterr().err
+
+
+def test_that_execute_refuses_a_trajectory_proven_on_changed_robot_files(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "old.json", _proven_report(robot, robot_digest="0" * 64))
+    assert main(["execute", str(path), "--mock", "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "proven on another version of robot 'op3'" in err and "000000000000..." in err
+
+
+def test_that_execute_with_the_twin_reports_the_simulated_robot_upright(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))
+    assert main(["execute", str(path), "--mock", "--twin", "--yes"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"twin: [\d.]+ s simulated; torso tilt [\d.]+ deg, .*: upright", out), out
+
+
+def test_that_read_posture_raises_a_driver_error_when_a_servo_is_silent(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    smap = load_servo_map(robot.directory / "servos.toml")
+    url = mock_url_for(smap, wire_timing=False)
+    emulator = mb.attached(url.removeprefix("dxlsim://"))
+    assert emulator is not None
+    emulator.faults.silence(3)
+    out_file = tmp_path / "pose.json"
+    assert main(["servos", "read-posture", "--port", url, "--out", str(out_file)]) == 2
+    err = capsys.readouterr().err
+    assert "error: no present position from servo(s) [3]; no posture written" in err
+    assert not out_file.exists()
+
+
+def test_that_read_posture_writes_the_present_angles(robot: Robot, tmp_path: Path) -> None:
+    out_file = tmp_path / "pose.json"
+    assert main(["servos", "read-posture", "--mock", "--out", str(out_file)]) == 0
+    assert '"robot-rise/posture@1"' in out_file.read_text()
+
+
+def test_that_mockbus_serve_prints_a_device_that_servos_scan_can_open(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "robot_rise", "mockbus", "serve", "--duration", "60"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        ready, _, _ = select.select([proc.stdout], [], [], 60.0)
+        line = proc.stdout.readline() if ready else ""
+        match = re.match(r"mock bus on (/dev/\S+): 20 servos \(op3\) at 2000000 bit/s", line)
+        assert match, line
+        assert main(["servos", "scan", "--port", match.group(1)]) == 0
+        out = capsys.readouterr().out
+        assert "no latency timer" in out and "low-latency ioctl not supported" in out
+        assert "20 servo(s) answered" in out
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(10)
+        if proc.stdout is not None:
+            proc.stdout.close()
+    assert proc.returncode == 0

@@ -1,0 +1,262 @@
+"""The physics twin: a MuJoCo simulation of the robot that moves the emulated servos.
+
+The mock bus (``drivers.mockbus``) asks its *plant* to advance by ``dt`` given each servo's
+command and reads back each shaft's motion. :class:`MujocoTwin` is such a plant: it satisfies
+``drivers.mockbus.Plant`` structurally (duck typing; this module never imports ``drivers``):
+
+- ``advance(dt_s, commands)`` takes ``{servo_id: command}`` where a command has the attributes
+  ``torque_on``, ``goal_rad`` (servo frame) and ``pwm_fraction`` (0..1, output limit), and
+  returns ``{servo_id: motion}`` with ``position_rad`` (servo frame), ``velocity_rad_s`` and
+  ``torque_nm``.
+
+The servo frame is the servo's own angle ``(ticks - 2048) * 2 pi / 4096``; the servo map
+(``servos.toml``) relates it to the joint angle: ``servo = direction * (joint + zero_offset)``.
+
+The simulated robot is the composed model of :func:`robot_rise.model.compose` (robot + scene +
+one position servo per joint, the same servo model the player uses), stepped at its own
+timestep (2 ms). A servo with torque off (or zero PWM) exerts no position-loop force; its
+joint keeps the passive damping and friction of the gear train. Goal PWM below 100 % scales
+the torque limit.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from robot_rise.constants import STAND_MAX_TILT_RAD, STAND_MIN_HEIGHT_FRACTION
+from robot_rise.errors import ConfigError
+from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
+from robot_rise.posture import Posture, posture_from_qpos
+
+__all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "MujocoTwin", "stand_posture"]
+
+log = logging.getLogger(__name__)
+
+
+class ServoCommandLike(Protocol):
+    """What the twin reads of a mock servo's command (``drivers.mockbus.ServoCommand``)."""
+
+    @property
+    def torque_on(self) -> bool: ...
+
+    @property
+    def goal_rad(self) -> float: ...
+
+    @property
+    def pwm_fraction(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class TwinMotion:
+    """One shaft's state after a step (read by the mock servo).
+
+    Attributes:
+        position_rad: servo-frame angle [rad].
+        velocity_rad_s: servo-frame velocity [rad/s].
+        torque_nm: motor torque on the shaft [N m], servo frame.
+    """
+
+    position_rad: float
+    velocity_rad_s: float = 0.0
+    torque_nm: float = 0.0
+
+
+@dataclass(frozen=True)
+class TwinState:
+    """A summary of the simulated robot for the operator.
+
+    Attributes:
+        t_s: simulated time [s].
+        joint_names: joint order of ``q_rad``.
+        q_rad: joint angles [rad], shape (n,).
+        root_pos: root position [m], shape (3,).
+        tilt_rad: angle between the torso's z axis and the world vertical [rad].
+        torso_height_m: torso site height above the lowest sole site [m].
+        stand_height_m: the same height in the ``stand`` keyframe [m].
+    """
+
+    t_s: float
+    joint_names: tuple[str, ...]
+    q_rad: np.ndarray
+    root_pos: np.ndarray
+    tilt_rad: float
+    torso_height_m: float
+    stand_height_m: float
+
+    @property
+    def upright(self) -> bool:
+        """Upright now by the standing judge's thresholds (tilt and height; the judge also
+        asks for the feet-only contact and a hold time, which one instant cannot show)."""
+        return (self.tilt_rad <= STAND_MAX_TILT_RAD
+                and self.torso_height_m >= STAND_MIN_HEIGHT_FRACTION * self.stand_height_m)
+
+
+def stand_posture(robot: Robot) -> Posture:
+    """The robot's ``stand`` keyframe as a :class:`Posture`."""
+    q = robot.stand_qpos
+    return Posture(robot.name, np.asarray(q[:3]), np.asarray(q[3:7]), dict(zip(robot.joint_names, q[7:])))
+
+
+class MujocoTwin:
+    """A MuJoCo simulation of ``robot`` in ``scene`` driven by servo commands.
+
+    Args:
+        robot: the loaded robot (its ``servos`` give IDs, directions and zero offsets).
+        scene: scene name or MJCF path (see :func:`robot_rise.model.compose`).
+        start: posture at t = 0, at rest (default: the ``stand`` keyframe).
+        voltage_v: servo supply voltage [V].
+        hold_start: until the first servo is torqued on, every joint holds the start posture
+            (as if the robot were held there while the driver configures the servos with
+            torque off); afterwards the servos' own commands rule.
+
+    Not thread-safe (owns one MjData).
+    """
+
+    def __init__(self, robot: Robot, scene: str | os.PathLike[str] | None = "flat", *,
+                 start: Posture | None = None, voltage_v: float = SUPPLY_VOLTAGE_V,
+                 hold_start: bool = True) -> None:
+        self.robot = robot
+        self.model = compose(robot, scene, with_actuators=True, voltage_v=voltage_v)
+        self.data = mujoco.MjData(self.model)
+        self.index: ModelIndex = model_index(self.model, robot)
+        if self.index.actuators.size != robot.n_joints:
+            raise ConfigError(f"composed model has {self.index.actuators.size} servos for {robot.n_joints} joints")
+        m = self.model
+        acts = self.index.actuators
+        self._kp = m.actuator_gainprm[acts, 0].copy()
+        self._force_limit = m.actuator_forcerange[acts, 1].copy()
+        self._ctrl_lo = m.actuator_ctrlrange[acts, 0].copy()
+        self._ctrl_hi = m.actuator_ctrlrange[acts, 1].copy()
+        self.servo_ids = tuple(s.id for s in robot.servos)
+        self._column = {s.id: k for k, s in enumerate(robot.servos)}
+        self._direction = np.array([float(s.direction) for s in robot.servos])
+        self._zero_offset = np.array([s.zero_offset for s in robot.servos])
+        self._goal = np.zeros(robot.n_joints)
+        self._powered = np.zeros(robot.n_joints, dtype=bool)
+        self._pwm = np.ones(robot.n_joints)
+        self._pending_s = 0.0
+        self.hold_start = hold_start
+        self._holding = hold_start
+        self._torso_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.torso_site)
+        self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
+        self.reset(start if start is not None else stand_posture(robot))
+
+    # ---- frames -------------------------------------------------------------------------
+    def servo_to_joint_rad(self, servo_rad: np.ndarray) -> np.ndarray:
+        """Servo-frame angles [rad] in joint order, shape (n,) -> joint angles [rad]."""
+        return self._direction * np.asarray(servo_rad, dtype=float) - self._zero_offset
+
+    def joint_to_servo_rad(self, joint_rad: np.ndarray) -> np.ndarray:
+        """Joint angles [rad], shape (n,) -> servo-frame angles [rad] in joint order."""
+        return self._direction * (np.asarray(joint_rad, dtype=float) + self._zero_offset)
+
+    def initial_servo_rad(self) -> dict[int, float]:
+        """Present servo-frame angle by servo ID [rad] (to start the mock servos where the twin is)."""
+        servo = self.joint_to_servo_rad(self.joint_positions_rad)
+        return {sid: float(servo[k]) for sid, k in self._column.items()}
+
+    # ---- state --------------------------------------------------------------------------
+    def reset(self, start: Posture) -> None:
+        """Put the robot at rest in ``start``; servos unpowered, goals at the start angles."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = start.qpos(self.robot, self.index, m.qpos0)
+        d.qvel[:] = 0.0
+        self._goal = np.clip(start.joint_vector(self.robot.joint_names), self._ctrl_lo, self._ctrl_hi)
+        self._powered[:] = self.hold_start
+        self._holding = self.hold_start
+        self._pwm[:] = 1.0
+        self._pending_s = 0.0
+        self._apply_servo_state()
+        mujoco.mj_forward(m, d)
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    @property
+    def joint_positions_rad(self) -> np.ndarray:
+        """Joint angles [rad] in the robot's joint order, shape (n,)."""
+        return self.data.qpos[self.index.qpos_joints].copy()
+
+    def posture(self) -> Posture:
+        """The simulated robot's present posture."""
+        return posture_from_qpos(self.robot, self.index, self.data.qpos)
+
+    def state(self) -> TwinState:
+        """A summary for the operator (torso tilt and height: is the robot standing?)."""
+        d = self.data
+        zt = d.site_xmat[self._torso_site].reshape(3, 3)[:, 2]
+        sole_z = min(float(d.site_xpos[s][2]) for s in self._sole_sites)
+        return TwinState(
+            t_s=float(d.time),
+            joint_names=self.robot.joint_names,
+            q_rad=self.joint_positions_rad,
+            root_pos=d.qpos[self.index.qpos_root[:3]].copy(),
+            tilt_rad=float(np.arccos(np.clip(zt[2], -1.0, 1.0))),
+            torso_height_m=float(d.site_xpos[self._torso_site][2]) - sole_z,
+            stand_height_m=self.robot.stand_height_m,
+        )
+
+    # ---- the Plant protocol -------------------------------------------------------------
+    def advance(self, dt_s: float, commands: Mapping[int, ServoCommandLike]) -> dict[int, TwinMotion]:
+        """Apply ``commands`` (by servo ID), integrate ``dt_s`` [s], return every servo's motion.
+
+        Time is accumulated: physics steps happen whenever a whole timestep has passed, so
+        calls with ``dt_s`` shorter than the timestep are exact on average.
+        """
+        if self._holding and any(cmd.torque_on for cmd in commands.values()):
+            self._holding = False
+            log.debug("twin: first servo torqued on; servos now follow their commands")
+        if commands and not self._holding:
+            goal_servo = np.zeros(len(self._goal))
+            have = np.zeros(len(self._goal), dtype=bool)
+            for sid, cmd in commands.items():
+                k = self._column.get(sid)
+                if k is None:
+                    continue
+                have[k] = True
+                goal_servo[k] = cmd.goal_rad
+                self._powered[k] = bool(cmd.torque_on) and cmd.pwm_fraction > 0.0
+                self._pwm[k] = min(1.0, max(0.0, float(cmd.pwm_fraction)))
+            goal = np.clip(self.servo_to_joint_rad(goal_servo), self._ctrl_lo, self._ctrl_hi)
+            self._goal = np.where(have, goal, self._goal)
+            self._apply_servo_state()
+        m, d = self.model, self.data
+        self._pending_s += max(0.0, dt_s)
+        timestep = float(m.opt.timestep)
+        n_steps = int(self._pending_s / timestep + 1e-9)
+        if n_steps:
+            self._pending_s -= n_steps * timestep
+            mujoco.mj_step(m, d, nstep=n_steps)
+        return self._motions()
+
+    def _apply_servo_state(self) -> None:
+        m, d = self.model, self.data
+        acts = self.index.actuators
+        kp = np.where(self._powered, self._kp, 0.0)
+        m.actuator_gainprm[acts, 0] = kp
+        m.actuator_biasprm[acts, 1] = -kp
+        limit = self._force_limit * np.where(self._powered, self._pwm, 1.0)
+        m.actuator_forcerange[acts, 0] = -limit
+        m.actuator_forcerange[acts, 1] = limit
+        d.ctrl[acts] = self._goal
+
+    def _motions(self) -> dict[int, TwinMotion]:
+        d = self.data
+        q = d.qpos[self.index.qpos_joints]
+        qd = d.qvel[self.index.dof_joints]
+        force = d.actuator_force[self.index.actuators]
+        servo_q = self.joint_to_servo_rad(q)
+        servo_qd = self._direction * qd
+        servo_tau = self._direction * force
+        return {sid: TwinMotion(float(servo_q[k]), float(servo_qd[k]), float(servo_tau[k]))
+                for sid, k in self._column.items()}
