@@ -62,11 +62,11 @@ def run(args: argparse.Namespace) -> int:
     code = 0 if check["proven"] else 1
     parser = build_parser()
     if not args.no_execute:
-        argv = ["execute", str(traj), "--mock", "--yes", "--log", str(out / "execute_log.csv")]
+        argv = ["execute", str(traj), "--mock", "--twin", "--yes", "--log", str(out / "execute_log.csv")]
         if args.robot:
             argv += ["--robot", args.robot]
         ns = parser.parse_args(argv)
-        print("4. execute on the emulated Dynamixel bus:")
+        print("4. execute on the emulated Dynamixel bus, servos moved by the MuJoCo twin:")
         rc = ns.func(ns)
         code = code or rc
     if importlib.util.find_spec("robot_rise.cli.cmd_report") is not None:
