@@ -83,3 +83,73 @@ def test_a_too_short_recording_is_not_standing() -> None:
     v = judge(Player(robot).play(tr, hold_s=1.0))
     assert not v.standing
     assert "stood only" in v.reason or "settled" in v.reason
+
+
+# --- the fast hull / margin against the plain numpy version they replaced ------------------
+
+
+def _reference_hull(points: np.ndarray) -> np.ndarray:
+    pts = np.unique(np.round(np.asarray(points, dtype=float), 9), axis=0)
+    if len(pts) <= 2:
+        return pts
+
+    def cross(o, a, b):  # type: ignore[no-untyped-def]
+        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in pts[::-1]:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _reference_margin(point: np.ndarray, contact_points: np.ndarray) -> float:
+    def seg(p, a, b):  # type: ignore[no-untyped-def]
+        ab = b - a
+        L = float(ab @ ab)
+        s = 0.0 if L < 1e-18 else float(np.clip((p - a) @ ab / L, 0.0, 1.0))
+        return float(np.linalg.norm(p - (a + s * ab)))
+
+    p = np.asarray(point, dtype=float)
+    hull = _reference_hull(contact_points)
+    if len(hull) == 1:
+        return -float(np.linalg.norm(p - hull[0]))
+    if len(hull) == 2:
+        return -seg(p, hull[0], hull[1])
+    dists = [seg(p, hull[i], hull[(i + 1) % len(hull)]) for i in range(len(hull))]
+    edge = np.roll(hull, -1, axis=0) - hull
+    rel = p - hull
+    inside = bool(np.all(edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] >= 0))
+    return min(dists) if inside else -min(dists)
+
+
+def test_hull_and_margin_equal_the_plain_numpy_version_on_random_contact_sets() -> None:
+    rng = np.random.default_rng(7)
+    for i in range(600):
+        pts = rng.normal(size=(int(rng.integers(1, 12)), 2)) * 0.05
+        if i % 5 == 0:
+            pts = np.round(pts, 2)  # duplicates and collinear points
+        if i % 7 == 0:
+            pts[:, 1] = pts[0, 1]  # all on a line
+        if i % 11 == 0:
+            pts = (np.round(pts * 1e9) + 0.5) / 1e9  # ties at the rounding digit
+        p = rng.normal(size=2) * 0.06
+        np.testing.assert_array_equal(convex_hull_2d(pts), _reference_hull(pts))
+        assert support_margin(p, pts) == pytest.approx(_reference_margin(p, pts), abs=1e-15)
+
+
+def test_zmp_of_many_samples_equals_one_at_a_time() -> None:
+    rng = np.random.default_rng(3)
+    m = rng.uniform(0.1, 1.0, 21)
+    p, a = rng.normal(size=(40, 21, 3)), rng.normal(size=(40, 21, 3))
+    many = judge_mod.zmp_point_mass_many(m, p, a)
+    one = np.array([zmp_point_mass(m, p[i], a[i]) for i in range(40)])
+    np.testing.assert_allclose(many, one, rtol=0, atol=1e-12)
+    a[:, :, 2] = -judge_mod.GRAVITY_M_S2  # free fall
+    assert np.isnan(judge_mod.zmp_point_mass_many(m, p, a)).all()
