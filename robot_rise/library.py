@@ -32,7 +32,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy.cluster.vq import kmeans2
 
 from robot_rise.errors import FormatError
 from robot_rise.model import Robot
@@ -322,6 +321,8 @@ class KMeansTree:
         seed = int(self._rng.integers(2**31 - 1))
         with warnings.catch_warnings():  # empty clusters are dropped below
             warnings.simplefilter("ignore")
+            from scipy.cluster.vq import kmeans2  # imported here: scipy.cluster costs ~0.5 s at CLI start-up
+
             _, labels = kmeans2(self._features[rows], k, minit="++", seed=seed)
         groups = [rows[labels == g] for g in range(k) if np.any(labels == g)]
         if len(groups) < 2:  # identical frames: split arbitrarily
