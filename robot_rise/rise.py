@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rise.errors import PostureError
+from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import FilterResult, FilterSettings, dynamics_filter, join_with_blend, prove
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
@@ -155,7 +155,9 @@ def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connect
     tr = motion.trajectory
     cols = [tr.joint_names.index(j) for j in robot.joint_names]
     root = tr.root[connection.frame] if tr.root is not None else np.concatenate([motion.start.root_pos, motion.start.root_quat_wxyz])
-    goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, tr.q[connection.frame, cols])))
+    # Library targets may graze a limit by rounding; the planner needs a goal inside the limits.
+    joints = np.clip(tr.q[connection.frame, cols], robot.joint_lower, robot.joint_upper)
+    goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, joints)))
     # Rest it at the height the robot lies at (the floor, a bed, a slope under the start).
     floor_z = checker.lowest_point_z(checker.qpos_of(start))
     placed = _place(goal, start, checker, start.root_pos[:2], floor_z)
@@ -246,9 +248,14 @@ def rise(
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree):
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
-        goal = connecting_posture(library, robot, conn, key or start, checker)
-        problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
-        planned = plan_trajectory(problem)
+        try:
+            goal = connecting_posture(library, robot, conn, key or start, checker)
+            problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
+            planned = plan_trajectory(problem)
+        except RobotRiseError as e:  # one bad candidate must not end the rise
+            attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, f"error: {e}"))
+            log.warning("candidate %s@%d failed: %s", conn.motion, conn.frame, e)
+            continue
         t1 = time.monotonic()
         if not planned.solved or planned.trajectory is None:
             reason = planned.result.reason or planned.result.status.value
