@@ -52,6 +52,9 @@ __all__ = [
     "dynamics_filter",
     "prove",
     "scene_digest",
+    "ModelError",
+    "ROBUSTNESS_CHECKS",
+    "stands_under",
 ]
 
 log = logging.getLogger(__name__)
@@ -365,3 +368,51 @@ def dynamics_filter(
     }
     final = Trajectory(robot.name, current.joint_names, current.t, current.q, start, {**current.report, **full_report}, None)
     return FilterResult(ok, final, rec, verdict, tuple(history), reason, full_report)
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """A deliberate error between the proof's model and the real robot, for robustness replays.
+
+    Attributes:
+        label: what it is, for reports.
+        mass_scale: every body's mass and inertia times this.
+        friction_scale: every geom's sliding friction times this.
+        voltage_scale: servo supply voltage times this (stall torque and no-load speed scale with it).
+        latency_s: the targets arrive this much later.
+    """
+
+    label: str
+    mass_scale: float = 1.0
+    friction_scale: float = 1.0
+    voltage_scale: float = 1.0
+    latency_s: float = 0.0
+
+
+# Checked by ``rise`` on every proven candidate (ours: a heavy, grippy robot whose commands arrive
+# one 100 Hz control period late — a nominal proof that is a fluke of exact timing fails this).
+ROBUSTNESS_CHECKS: tuple[ModelError, ...] = (
+    ModelError("mass +10 %, friction x1.33, 10 ms latency", mass_scale=1.1, friction_scale=1.2 / 0.9, latency_s=0.01),
+)
+
+
+def stands_under(
+    robot: Robot,
+    trajectory: Trajectory,
+    error: ModelError,
+    *,
+    scene: str | os.PathLike[str] | None = "flat",
+    settings: FilterSettings = FilterSettings(),
+    start: Posture | None = None,
+) -> bool:
+    """Replay ``trajectory`` unchanged on a model with ``error``; True if the robot still stands
+    (judge) with no self-collision beyond the tolerance. Torque is not re-checked: the model is
+    deliberately wrong."""
+    from robot_rise.model import SUPPLY_VOLTAGE_V
+
+    player = Player(robot, scene, mass_scale=error.mass_scale, friction_scale=error.friction_scale, voltage_v=SUPPLY_VOLTAGE_V * error.voltage_scale)
+    tr = trajectory
+    if error.latency_s > 0:
+        tr = Trajectory(tr.robot, tr.joint_names, np.concatenate([[0.0], tr.t + error.latency_s]), np.vstack([tr.q[:1], tr.q]), tr.start, tr.report)
+    _, verdict, report = prove(robot, tr, scene=scene, settings=settings, player=player, start=start)
+    return bool(verdict.standing and not report["self_collision"])

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import FilterResult, FilterSettings, dynamics_filter, join_with_blend, prove
+from robot_rise.filter import ROBUSTNESS_CHECKS, FilterResult, FilterSettings, ModelError, dynamics_filter, join_with_blend, prove, stands_under
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
 from robot_rise.planning.bench_problems import align_to_start
@@ -53,13 +53,14 @@ class RiseAttempt:
     proven: bool = False
     filter_reason: str = ""
     seconds: dict[str, float] = field(default_factory=dict)
+    robust: bool = False
 
     def describe(self) -> str:
         if not self.planned:
             return f"{self.motion}@{self.frame}: no path ({self.plan_reason})"
         if not self.proven:
             return f"{self.motion}@{self.frame}: not proven ({self.filter_reason})"
-        return f"{self.motion}@{self.frame}: proven"
+        return f"{self.motion}@{self.frame}: proven" + ("" if self.robust else ", not robust to model errors")
 
 
 @dataclass(frozen=True)
@@ -206,6 +207,7 @@ def rise(
     progress: Callable[[str], None] | None = None,
     context: RiseContext | None = None,
     retries: int = DEFAULT_RETRIES,
+    robustness: tuple[ModelError, ...] = ROBUSTNESS_CHECKS,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -221,6 +223,9 @@ def rise(
         settings: dynamics filter settings.
         progress: called with a short stage description.
         context: prebuilt checker/library/index for this robot and scene (reuse across rises).
+        robustness: model errors every proven candidate is replayed under; the first candidate
+            that still stands under all of them is returned, else the first proven one (its
+            report's ``robustness`` says which check it failed).
         retries: when every candidate fails but the robot ends lying at rest, rise again from
             there this many times (the combined motion is proven from the original start).
 
@@ -245,6 +250,7 @@ def rise(
     library = context.library
     attempts: list[RiseAttempt] = []
     best_unproven: FilterResult | None = None
+    best_proven: RiseResult | None = None
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree):
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
@@ -274,17 +280,32 @@ def rise(
         )
         result = dynamics_filter(robot, commanded, scene=scene, settings=settings, start=start)
         t2 = time.monotonic()
+        robust: dict[str, bool] = {}
+        if result.ok:
+            say("checking robustness to model errors")
+            robust = {e.label: stands_under(robot, result.trajectory, e, scene=scene, settings=settings, start=start) for e in robustness}
+        t3 = time.monotonic()
         attempt = RiseAttempt(
             conn.motion, conn.frame, conn.distance, True, proven=result.ok, filter_reason=result.reason,
-            seconds={"plan": t1 - t0, "filter": t2 - t1},
+            seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()),
         )
         attempts.append(attempt)
-        extra: dict[str, Any] = {"attempts": [a.describe() for a in attempts], "seconds": {"plan": t1 - t0, "filter": t2 - t1}}
+        extra: dict[str, Any] = {
+            "attempts": [a.describe() for a in attempts],
+            "seconds": attempt.seconds,
+            "robustness": robust,
+        }
         if result.ok:
             tr = result.trajectory.with_report(**extra)
-            return RiseResult(True, tr, tuple(attempts), "", result)
+            if all(robust.values()):
+                return RiseResult(True, tr, tuple(attempts), "", result)
+            if best_proven is None:  # proven, but a fluke of the exact model: look for a robust one
+                best_proven = RiseResult(True, tr, tuple(attempts), "", result)
+            continue
         if best_unproven is None:
             best_unproven = result
+    if best_proven is not None:
+        return RiseResult(True, best_proven.trajectory.with_report(attempts=[a.describe() for a in attempts]), tuple(attempts), "", best_proven.filter_result)
     reason = "; ".join(a.describe() for a in attempts) or "no library motion to connect to"
     if retries > 0 and best_unproven is not None:
         recovered = _rise_again_from_where_it_fell(

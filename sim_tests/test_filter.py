@@ -79,3 +79,13 @@ def test_an_impossible_motion_fails_with_a_reason(robot):
         pytest.skip("the robot happened to stay up; not an impossible motion for this model")
     assert result.reason and "filter iterations" in result.reason
     assert result.trajectory.report["proven"] is False
+
+
+def test_a_slow_squat_still_stands_under_the_robustness_model_errors(robot):
+    from robot_rise.filter import ROBUSTNESS_CHECKS, ModelError, stands_under
+
+    tr = _squat_trajectory(robot, 3.0)
+    for error in ROBUSTNESS_CHECKS:
+        assert stands_under(robot, tr, error)
+    # a robot with a third of its servo torque cannot hold a deep squat
+    assert not stands_under(robot, tr, ModelError("weak servos", voltage_scale=0.3))
