@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-slow bench clean system-deps
+.PHONY: demo test test-slow bench bench-planning clean system-deps
 
 # System packages for headless rendering and browser tests (Mesa EGL, Chromium); a no-op where
 # they are present or where the script is absent.
@@ -25,8 +25,16 @@ test: $(BIN)/robot-rise system-deps
 test-slow: $(BIN)/robot-rise
 	$(BIN)/python -m pytest -q -m slow
 
+# The figures in BENCHMARKS.md (long: the rise benchmark takes ~10 minutes on 2 cores).
 bench: $(BIN)/robot-rise
 	$(BIN)/robot-rise bench validity
+	$(BIN)/robot-rise bench bus
+	$(BIN)/robot-rise library bench
+	$(BIN)/robot-rise bench rise --n-per-kind 20 --seed 0
+
+bench-planning: $(BIN)/robot-rise
+	$(BIN)/pip install --quiet -e '.[bench]'
+	$(BIN)/python -m robot_rise.planning.bench_planning --seed 1 --budget 10 --out out/bench_planning.json
 
 clean:
 	rm -rf $(VENV) out

@@ -12,7 +12,7 @@ torques, envelope ratios (max over the interval), root pose and velocity, centre
 tilt and height, which robot geoms touch the ground, and, when only the feet touch the ground,
 the ZMP and the support polygon margin (paper 003 section 2, eq. 2.11-2.12; see judge.py).
 
-Speed (robot_rise/BENCHMARKS_player.md): the loop around ``mj_step`` does as little Python as it
+Speed (BENCHMARKS.md, "Player speed"): the loop around ``mj_step`` does as little Python as it
 can. Per step it only sets the controls, copies ``qvel`` and ``actuator_force`` into preallocated
 arrays, and classifies the contacts through a cache keyed by the contact list's geom ids (the
 same few contact sets recur for thousands of steps); the envelope ratios of every step are then
