@@ -236,3 +236,41 @@ def test_that_tangent_difference_and_step_are_inverse(setup):
     b[checker.index.qpos_root[3:]] = [math.cos(0.4), 0.0, math.sin(0.4), 0.0]
     v = tangent_difference(checker.model, a, b)
     assert np.allclose(tangent_step(checker.model, a, v), b, atol=1e-9)
+
+
+def test_that_ground_contact_rows_stop_a_step_that_would_sink_a_resting_robot(setup, problems):
+    robot, checker, energy = setup
+    q = checker.qpos_of(problems["crossed_arms"].start)  # supine, resting 0.5 mm above the ground
+    p = EnergyParams()
+    scale = energy_module._tangent_scale(checker, p)
+    v = np.zeros(checker.model.nv)
+    v[checker.index.qvel_root[2]] = -0.006  # straight down by 6 mm: through the 2 mm tolerance
+    assert not checker.is_valid_qpos(tangent_step(checker.model, q, v))
+    K, C = energy.ground_contact_rows(q, v, energy_module.GROUND_CONTACT_ZONE_M)
+    assert K.shape[0] > 0 and K.shape == (len(C), checker.model.nv)
+    empty = (np.zeros((0, checker.model.nv)), np.zeros(0))
+    Ks, Cs = energy_module._with_ground_contacts(energy, q, v * scale, *empty, np.zeros(checker.model.nv), scale, p)
+    dy = energy_module._project_constraints(v * scale, Ks, Cs, np.zeros(checker.model.nv), p)
+    q_new = tangent_step(checker.model, q, dy / scale)
+    qj = checker.index.qpos_joints  # the planner's hard joint bound (eq. 13) after every step
+    q_new[qj] = np.clip(q_new[qj], robot.joint_lower, robot.joint_upper)
+    assert checker.is_valid_qpos(q_new)
+    assert checker.lowest_point_z(q_new) >= checker.lowest_point_z(q) - 0.001
+    # a step that lifts the robot touches no constraint
+    K_up, _ = energy.ground_contact_rows(q, -v, energy_module.GROUND_CONTACT_ZONE_M)
+    assert K_up.shape[0] == 0
+
+
+def test_that_the_safe_zone_key_postures_keep_the_ends_and_a_legal_path(setup, problems):
+    robot, checker, energy = setup
+    p = problems["crossed_legs"]
+    raw = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), energy=energy, budget_s=30.0)
+    assert raw.status is PlanStatus.EXACT_SOLUTION, raw.reason
+    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
+    keys = energy_module.safe_zone_keyframes(checker, raw.qpos, gli)
+    assert 2 <= len(keys) < len(raw.qpos)
+    assert np.array_equal(keys[0], raw.qpos[0]) and np.array_equal(keys[-1], raw.qpos[-1])
+    assert all(any(np.array_equal(k, r) for r in raw.qpos) for k in keys)  # a subsequence of the raw path
+    for a, b in zip(keys[:-1], keys[1:]):
+        assert segment_is_valid(checker, a, b, resolution_m=0.005)
+        assert energy_module.gli_difference(gli(a), gli(b)) < 0.3  # eq. (8): one safe subspace

@@ -1,59 +1,81 @@
-"""Benchmark of the energy-driven planner (paper 004) beside RRT-blossom and RRT-Connect.
+"""Benchmark of the energy-driven planner (paper 004) beside RRT-blossom and OMPL's RRT-Connect (issue 7).
 
-Problems where the straight interpolation penetrates (issue 7, "Measured"):
+Problem sets:
 
-- ``crossed_arms``: lying supine, forearms folded across the chest, left over right -> right over left;
-- ``crossed_legs``: lying supine, legs crossed with the left over the right -> the right over the left;
-- ``arm_under_back``: supine with the left arm under the back -> a sitting posture (torso upright,
-  hips flexed 90 degrees, legs straight on the ground, hands forward) standing in for a library
-  connecting posture (no library yet).
+- crossed-limb problems, where the straight interpolation penetrates (issue 7, "Measured"):
 
-Each kind has ``n`` variants: the base pair with seeded joint jitter (the same jitter on both
-ends), kept only when both ends are legal and the straight motion between them is not.
+  - ``crossed_arms``: lying supine, forearms folded across the chest, left over right -> right over left;
+  - ``crossed_legs``: lying supine, legs crossed with the left over the right -> the right over the left;
+  - ``arm_under_back``: supine with the left arm under the back -> a sitting posture (torso upright,
+    hips flexed 90 degrees, legs straight on the ground, hands forward).
 
-Planners compared on the same strict ``ValidityChecker``:
+  Each kind has ``n`` variants: the base pair with seeded joint jitter (the same jitter on both
+  ends), kept only when both ends are legal and the straight motion between them is not.
 
-- ``energy``: ``plan_energy`` (this issue);
-- ``rrt_blossom``: ``RRTBlossomPlanner`` of the other planner (issue 5), when importable;
-- ``rrt_connect``: OMPL's RRT-Connect (PyPI ``ompl``) over root position, root rotation vector
-  (relative to the start orientation) and joints, with the same checker as state validity and a
-  motion resolution; our own RRT-Connect (``own_rrt_connect``) when ``ompl`` is absent.
+- ``lying60``: the paper 000 section 5 protocol, 60 settled lying postures on flat ground
+  (``sample_lying_postures``, fixed seed: 20 supine, 20 prone, 10 left, 10 right) to their LIBRARY
+  connecting postures: the nearest library frame (``connection_candidates(..., k=1)`` of
+  robot_rise.rise, over the lying frames of ``RiseContext``), placed where the robot lies
+  (``connecting_posture``), exactly as ``robot-rise rise`` selects its first candidate.
 
-Every solved path goes through the shared smoothing and timing (``plan_trajectory``) and is
-measured: success, planning time, path length (paper 000 eq. 1 metric, ``path_length``), minimum
-self clearance, and integrated squared jerk of the timed joint rows.
+Planners, all on the same strict ``ValidityChecker`` (flat scene):
 
-Run: ``python -m robot_rise.planning.bench_energy --n 10 --budget 30`` (prints a Markdown table).
+- ``energy``: ``EnergyPlanner`` (this issue); every path segment verified at 5 mm of travel;
+- ``rrt_blossom``: ``RRTBlossomPlanner`` (issue 5); edges at EDGE_RESOLUTION_M (10 mm);
+- ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
+  robot_rise/planning/ompl_adapter.py (the one bench_planning.py uses): our checker as state
+  validity, our MotionValidator at EDGE_RESOLUTION_M as OMPL's motion validator;
+- ``energy_raw`` (ablation, only when named in ``--planners``): the energy planner without the
+  section 5.2 key postures (``EnergyParams(keyframes=False)``).
+
+Every solved path goes through the shared smoothing and timing (``plan_trajectory``: shortcut +
+B-spline smoothing re-verified with the checker at 2.5 mm, servo-limited timing) and is measured:
+success, planning time and total time (plan + smooth + time), path length (paper 000 eq. 1
+metric, ``path_length``), minimum self and ground clearance of the smoothed path, integrated
+squared jerk of the timed joint rows, and the timed duration.
+
+Run (prints Markdown tables; ``--out`` keeps every run as JSON, ``--merge`` tables saved runs)::
+
+    .venv/bin/python -m robot_rise.planning.bench_energy --sets crossed --n 5 --budget 20 --out out/bench_energy_crossed.json
+    .venv/bin/python -m robot_rise.planning.bench_energy --sets lying60 --budget 10 --lying-cache out/lying60_seed1.json --out out/bench_energy_lying60.json
+    .venv/bin/python -m robot_rise.planning.bench_energy --merge out/bench_energy_crossed.json out/bench_energy_lying60.json
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
 from robot_rise.model import Robot, load_robot
-from robot_rise.planning.energy import EnergyPlanner, segment_is_valid, tangent_difference, tangent_step
-from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
-from robot_rise.posture import Posture, posture_from_qpos
+from robot_rise.planning.energy import EnergyParams, EnergyPlanner, segment_is_valid
+from robot_rise.planning.problem import PlanningProblem, PlanResult
+from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
     "CrossedProblem",
     "PROBLEM_KINDS",
+    "PROBLEM_SETS",
+    "LYING60_PER_KIND",
     "supine_quat_wxyz",
     "crossed_problems",
+    "lying60_problems",
+    "library_digest",
     "straight_motion_is_illegal",
-    "OmplRRTConnect",
-    "OwnRRTConnect",
     "integrated_squared_jerk",
+    "dimensionless_jerk",
+    "paired_jerk_table",
     "BenchRow",
     "run_benchmark",
+    "summary_table",
     "main",
 ]
 
@@ -168,181 +190,89 @@ def crossed_problems(robot: Robot, checker: ValidityChecker, *, kinds: tuple[str
     return out
 
 
-# --- RRT-Connect baselines ------------------------------------------------------------------------
+# --- the 60 lying postures of paper 000 to their library connecting postures -------------------
+
+LYING60_PER_KIND = {"supine": 20, "prone": 20, "left": 10, "right": 10}  # paper 000 section 5
+PROBLEM_SETS = ("crossed", "lying60")
 
 
-def _rotvec_to_quat(v: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(v))
-    if angle < 1e-12:
-        return np.array([1.0, 0.0, 0.0, 0.0])
-    axis = v / angle
-    return np.concatenate([[math.cos(angle / 2)], math.sin(angle / 2) * axis])
+def lying60_problems(robot: Robot, checker: ValidityChecker, *, seed: int = 1, per_kind: dict[str, int] | None = None) -> list[CrossedProblem]:
+    """Settled lying postures (fixed seed) to their library connecting postures, placed where the robot lies.
 
-
-class _FlatSpace:
-    """Flat coordinates for the RRT baselines: x = [root position (3), tangent rotation (3), joints (n)].
-
-    The rotation part is the root-frame rotation vector from the start orientation (mujoco's
-    tangent space), so a straight line in x is a straight tangent motion from the start.
+    ``kind`` of each problem is its lying kind (supine, prone, left, right); ``variant`` its
+    number within the kind. The goal is what ``robot-rise rise`` plans to: the nearest frame
+    (K-means tree, paper 000 eq. 1) among the library's lying frames, turned to the start's facing
+    and put on the ground at the start's position (``connecting_posture``). When that placed
+    posture is itself illegal (e.g. a library frame slightly outside a joint limit), no planner
+    can reach it; ``rise`` then moves on to its next candidate, and so do we (nearest legal one of
+    the ``DEFAULT_CANDIDATES`` candidates; ``goal_rank`` in ``LYING60_GOAL_RANKS`` records which).
     """
+    from robot_rise.rise import DEFAULT_CANDIDATES, RiseContext, connecting_posture, connection_candidates
+    from robot_rise.sampling import sample_lying_postures
 
-    def __init__(self, checker: ValidityChecker, start_qpos: np.ndarray) -> None:
-        self.checker = checker
-        self.m = checker.model
-        self.q0 = np.array(start_qpos, dtype=float)
-        self.idx = checker.index
-        n = len(checker.robot.joint_names)
-        self.dim = 6 + n
-        self.low = np.concatenate([self.q0[self.idx.qpos_root[:3]] - 0.3, [-math.pi] * 3, checker.robot.joint_lower])
-        self.high = np.concatenate([self.q0[self.idx.qpos_root[:3]] + 0.3, [math.pi] * 3, checker.robot.joint_upper])
-
-    def qpos(self, x: np.ndarray) -> np.ndarray:
-        q = self.q0.copy()
-        q[self.idx.qpos_root[:3]] = x[:3]
-        rot = np.zeros(4)
-        base = self.q0[self.idx.qpos_root[3:]]
-        import mujoco
-
-        mujoco.mju_mulQuat(rot, base, _rotvec_to_quat(np.asarray(x[3:6])))
-        q[self.idx.qpos_root[3:]] = rot
-        q[self.idx.qpos_joints] = x[6:]
-        return q
-
-    def x(self, qpos: np.ndarray) -> np.ndarray:
-        v = tangent_difference(self.m, self.q0, qpos)
-        return np.concatenate([qpos[self.idx.qpos_root[:3]], v[self.idx.qvel_root[3:]], qpos[self.idx.qpos_joints]])
-
-    def valid(self, x: np.ndarray) -> bool:
-        return self.checker.is_valid_qpos(self.qpos(x))
-
-
-def _result_from_xs(space: _FlatSpace, xs: list[np.ndarray], stats: dict) -> PlanResult:
-    checker = space.checker
-    postures = [posture_from_qpos(checker.robot, checker.index, space.qpos(x)) for x in xs]
-    return PlanResult(PlanStatus.EXACT_SOLUTION, PostureSequence.from_postures(postures, checker.robot.joint_names), "", stats)
-
-
-@dataclass(frozen=True)
-class OmplRRTConnect:
-    """OMPL's RRT-Connect (PyPI ``ompl``) on the strict checker, as a ``Planner``.
-
-    Attributes:
-        resolution: OMPL's longest valid segment fraction of the state-space extent.
-        simplify: let OMPL shortcut the path (our smoothing runs afterwards anyway).
-    """
-
-    resolution: float = 0.002
-    simplify: bool = False
-
-    def __call__(self, problem: PlanningProblem) -> PlanResult:
-        from ompl import base as ob  # optional dependency
-        from ompl import geometric as og
-
-        t0 = time.monotonic()
-        checker = problem.checker
-        qs, qg = checker.qpos_of(problem.start), checker.qpos_of(problem.goal)
-        space = _FlatSpace(checker, qs)
-        ss_space = ob.RealVectorStateSpace(space.dim)
-        bounds = ob.RealVectorBounds(space.dim)
-        for i in range(space.dim):
-            bounds.setLow(i, float(space.low[i]))
-            bounds.setHigh(i, float(space.high[i]))
-        ss_space.setBounds(bounds)
-        ss = og.SimpleSetup(ss_space)
-        ss.setStateValidityChecker(lambda s: space.valid(np.array([s[i] for i in range(space.dim)])))
-        ss.getSpaceInformation().setStateValidityCheckingResolution(self.resolution)
-        start, goal = ob.State(ss_space), ob.State(ss_space)
-        for i, (a, b) in enumerate(zip(space.x(qs), space.x(qg))):
-            start[i] = float(a)
-            goal[i] = float(b)
-        ss.setStartAndGoalStates(start, goal)
-        planner = og.RRTConnect(ss.getSpaceInformation())
-        ss.setPlanner(planner)
-        solved = ss.solve(float(problem.budget_s))
-        stats = {"planner": "ompl RRTConnect", "seconds": time.monotonic() - t0}
-        if not solved or not ss.haveExactSolutionPath():
-            return PlanResult(PlanStatus.TIMEOUT, None, f"OMPL RRT-Connect found no exact path in {problem.budget_s:.0f} s", stats)
-        if self.simplify:
-            ss.simplifySolution()
-        path = ss.getSolutionPath()
-        xs = [np.array([path.getState(k)[i] for i in range(space.dim)]) for k in range(path.getStateCount())]
-        stats["seconds"] = time.monotonic() - t0
-        return _result_from_xs(space, xs, stats)
-
-
-@dataclass(frozen=True)
-class OwnRRTConnect:
-    """Our RRT-Connect (Kuffner & LaValle 2000) on the strict checker, used when ``ompl`` is absent.
-
-    Attributes:
-        step: extension step in flat coordinates (max-norm) [rad or m].
-        edge_resolution_m: travel resolution of edge checks [m].
-    """
-
-    step: float = 0.15
-    edge_resolution_m: float = 0.01
-
-    def __call__(self, problem: PlanningProblem) -> PlanResult:
-        t0 = time.monotonic()
-        checker = problem.checker
-        qs, qg = checker.qpos_of(problem.start), checker.qpos_of(problem.goal)
-        space = _FlatSpace(checker, qs)
-        rng = np.random.default_rng(problem.seed)
-        trees = [([space.x(qs)], [-1]), ([space.x(qg)], [-1])]
-
-        def edge_ok(a: np.ndarray, b: np.ndarray) -> bool:
-            return segment_is_valid(checker, space.qpos(a), space.qpos(b), resolution_m=self.edge_resolution_m)
-
-        def extend(tree, target) -> tuple[str, int]:
-            nodes, parents = tree
-            arr = np.array(nodes)
-            near = int(np.argmin(np.max(np.abs(arr - target), axis=1)))
-            d = target - arr[near]
-            dist = float(np.max(np.abs(d)))
-            new = target if dist <= self.step else arr[near] + d * (self.step / dist)
-            if not space.valid(new) or not edge_ok(arr[near], new):
-                return "trapped", -1
-            nodes.append(new)
-            parents.append(near)
-            return ("reached" if dist <= self.step else "advanced"), len(nodes) - 1
-
-        it = 0
-        while time.monotonic() - t0 < problem.budget_s:
-            it += 1
-            target = rng.uniform(space.low, space.high)
-            a, b = trees[it % 2], trees[(it + 1) % 2]
-            status, ka = extend(a, target)
-            if status == "trapped":
-                continue
-            while True:
-                status_b, kb = extend(b, a[0][ka])
-                if status_b != "advanced":
+    ctx = RiseContext.build(robot, "flat")
+    out: list[CrossedProblem] = []
+    for kind, n in (per_kind or LYING60_PER_KIND).items():
+        for i, start in enumerate(sample_lying_postures(robot, kind, n, seed).postures):  # type: ignore[arg-type]
+            goals = []
+            for rank, conn in enumerate(connection_candidates(ctx.library, robot, start, DEFAULT_CANDIDATES, index=ctx.index, tree=ctx.tree)):
+                goal = connecting_posture(ctx.library, robot, conn, start, checker)
+                goals.append((rank, conn, goal))
+                if checker.is_valid(goal):
                     break
-            if status_b == "reached":
-                def chain(tree, k):
-                    out = []
-                    while k >= 0:
-                        out.append(tree[0][k])
-                        k = tree[1][k]
-                    return out[::-1]
-
-                pa, pb = chain(a, ka), chain(b, kb)
-                xs = pa + pb[::-1][1:] if a is trees[0] else pb + pa[::-1][1:]
-                stats = {"planner": "own RRTConnect", "iterations": it, "seconds": time.monotonic() - t0}
-                return _result_from_xs(space, xs, stats)
-        return PlanResult(PlanStatus.TIMEOUT, None, f"own RRT-Connect found no path in {problem.budget_s:.0f} s", {"iterations": it})
+            rank, conn, goal = goals[-1]
+            LYING60_GOAL_RANKS[(kind, i)] = (rank, f"{conn.motion}@{conn.frame}")
+            if rank:
+                log.warning("lying60 %s/%d: nearest library frame(s) illegal when placed; using candidate %d (%s@%d)", kind, i, rank, conn.motion, conn.frame)
+            out.append(CrossedProblem(kind, i, start, goal))
+    return out
 
 
-def rrt_connect_planner() -> tuple[str, Callable[[PlanningProblem], PlanResult]]:
-    """OMPL's RRT-Connect when the ``ompl`` package imports, else ours; with its label."""
-    try:  # the PyPI ompl 2.x (nanobind) bindings do not expose ob.State(space) like 1.x did
-        from ompl import base as ob
+LYING60_GOAL_RANKS: dict[tuple[str, int], tuple[int, str]] = {}  # (kind, variant) -> (candidate rank, motion@frame)
 
-        ob.State(ob.RealVectorStateSpace(2))
-        return "rrt_connect (ompl)", OmplRRTConnect()
-    except Exception as e:
-        log.warning("ompl RRT-Connect unusable (%s); using our own RRT-Connect", e)
-        return "rrt_connect (own)", OwnRRTConnect()
+
+def library_digest(robot: Robot) -> str:
+    """SHA-256 (first 16 hex digits) of the robot's motion library files: the connecting postures depend on them."""
+    import hashlib
+
+    from robot_rise.library import default_library_dir
+
+    h = hashlib.sha256()
+    root = Path(default_library_dir(robot.library))
+    for f in sorted(root.glob("*.json")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind: dict[str, int] | None, cache: str | None) -> list[CrossedProblem]:
+    """``lying60_problems``, frozen in a JSON file (settling takes minutes; the library may change).
+
+    The file is reused as long as it was made with the same seed and counts, whatever the library
+    is now (its digest and the goals' library frames are stored in it); delete it to resample.
+    """
+    from robot_rise.posture import posture_from_dict, posture_to_dict
+
+    key = {"seed": seed, "per_kind": per_kind or LYING60_PER_KIND}
+    if cache and Path(cache).exists():
+        data = json.loads(Path(cache).read_text())
+        if data.get("key") == key:
+            log.warning("lying60 problems from %s (library digest %s; now %s)", cache, data.get("library_digest"), library_digest(robot))
+            for d in data["problems"]:
+                LYING60_GOAL_RANKS[(d["kind"], d["variant"])] = (d.get("goal_rank", 0), d.get("goal_frame", ""))
+            return [CrossedProblem(d["kind"], d["variant"], posture_from_dict(d["start"]), posture_from_dict(d["goal"])) for d in data["problems"]]
+        log.warning("%s holds other lying problems (%s); sampling again", cache, data.get("key"))
+    digest = library_digest(robot)
+    out = lying60_problems(robot, checker, seed=seed, per_kind=per_kind)
+    if cache:
+        Path(cache).parent.mkdir(parents=True, exist_ok=True)
+        rows = [
+            {"kind": p.kind, "variant": p.variant, "goal_rank": LYING60_GOAL_RANKS[(p.kind, p.variant)][0],
+             "goal_frame": LYING60_GOAL_RANKS[(p.kind, p.variant)][1], "start": posture_to_dict(p.start), "goal": posture_to_dict(p.goal)}
+            for p in out
+        ]
+        Path(cache).write_text(json.dumps({"key": key, "library_digest": digest, "problems": rows}))
+    return out
 
 
 # --- measurement ----------------------------------------------------------------------------------
@@ -362,120 +292,226 @@ def integrated_squared_jerk(t: np.ndarray, q: np.ndarray) -> float:
     return float(np.sum(jerk * jerk) * dt)
 
 
+def dimensionless_jerk(t: np.ndarray, q: np.ndarray) -> float:
+    """Integrated squared jerk times D^5 / A^2 (Hogan & Sternad 2009): duration D [s], joint-space path length A [rad].
+
+    Scale-free: the same path shape played slower or scaled in amplitude gives the same value, so
+    long slow paths and short quick ones compare on shape and timing profile alone.
+    """
+    if len(t) < 4:
+        return 0.0
+    amp = float(np.sum(np.linalg.norm(np.diff(q, axis=0), axis=1)))
+    dur = float(t[-1] - t[0])
+    return integrated_squared_jerk(t, q) * dur**5 / max(amp, 1e-9) ** 2
+
+
 @dataclass(frozen=True)
 class BenchRow:
-    """One planner on one problem."""
+    """One planner on one problem (times in s, clearances in m; NaN when unsolved)."""
 
     planner: str
+    pset: str
     kind: str
     variant: int
     solved: bool
     plan_s: float
+    total_s: float
     path_length: float
     min_self_clearance_m: float
+    min_ground_clearance_m: float
     jerk: float
     duration_s: float
     reason: str
+    dimensionless_jerk: float = math.nan
 
 
-def _planners(budget_s: float) -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
-    out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [("energy", EnergyPlanner())]
-    try:
-        from robot_rise.planning.refine import RRTBlossomPlanner
+PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_raw")
 
-        out.append(("rrt_blossom", RRTBlossomPlanner()))
-    except ImportError as e:  # the other planner is not there
-        log.warning("RRT-blossom not importable (%s); skipped", e)
-    out.append(rrt_connect_planner())
+
+def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
+    from robot_rise.planning.ompl_adapter import OmplPlanner, ompl_available
+    from robot_rise.planning.refine import RRTBlossomPlanner
+
+    out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [
+        ("energy", EnergyPlanner()),
+        ("rrt_blossom", RRTBlossomPlanner()),
+        # ablation, only when asked for by name: Algorithm 1's raw alpha steps, no key postures
+        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False))),
+    ]
+    if ompl_available():
+        out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))
+    else:
+        log.warning("the ompl package is not installed: ompl_rrtconnect skipped")
     return out
 
 
-def run_benchmark(*, n: int = 5, budget_s: float = 30.0, seed: int = 0, planners: list[str] | None = None, kinds: tuple[str, ...] = PROBLEM_KINDS) -> list[BenchRow]:
-    """Every planner on every problem; smoothing and timing through ``plan_trajectory``."""
+def run_benchmark(
+    *,
+    sets: tuple[str, ...] = ("crossed",),
+    n: int = 5,
+    budget_s: float = 30.0,
+    seed: int = 0,
+    lying_seed: int = 1,
+    planners: list[str] | None = None,
+    kinds: tuple[str, ...] = PROBLEM_KINDS,
+    lying_per_kind: dict[str, int] | None = None,
+    progress: Callable[[BenchRow], None] | None = None,
+    lying_cache: str | None = None,
+) -> list[BenchRow]:
+    """Every planner on every problem of ``sets``; smoothing and timing through ``plan_trajectory``."""
     from robot_rise.planning.to_trajectory import path_length, path_min_clearance, plan_trajectory
 
     robot = load_robot()
     checker = ValidityChecker(robot, "flat")
-    problems = crossed_problems(robot, checker, kinds=kinds, n=n, seed=seed)
+    problems: list[tuple[str, CrossedProblem]] = []
+    if "crossed" in sets:
+        problems += [("crossed", p) for p in crossed_problems(robot, checker, kinds=kinds, n=n, seed=seed)]
+    if "lying60" in sets:
+        problems += [("lying60", p) for p in _cached_lying60(robot, checker, lying_seed, lying_per_kind, lying_cache)]
     rows: list[BenchRow] = []
-    for name, planner in _planners(budget_s):
-        if planners and not any(name.startswith(p) for p in planners):
+    for name, planner in _planners():
+        if planners and not any(name == p or (name.startswith(p) and name != "energy_raw") for p in planners):
             continue
-        for pr in problems:
+        if not planners and name == "energy_raw":
+            continue
+        for pset, pr in problems:
             problem = PlanningProblem(pr.start, pr.goal, checker, budget_s=budget_s, seed=seed + pr.variant)
             t0 = time.monotonic()
+            nan = math.nan
             try:
                 out = plan_trajectory(problem, planner=planner)
-            except Exception as e:  # a baseline crashing is a failure of that run, not of the benchmark
+            except Exception as e:  # a planner crashing is a failure of that run, not of the benchmark
                 log.exception("%s on %s/%d raised", name, pr.kind, pr.variant)
-                rows.append(BenchRow(name, pr.kind, pr.variant, False, time.monotonic() - t0, math.nan, math.nan, math.nan, math.nan, repr(e)))
+                rows.append(BenchRow(name, pset, pr.kind, pr.variant, False, time.monotonic() - t0, nan, nan, nan, nan, nan, nan, repr(e)))
+                if progress is not None:
+                    progress(rows[-1])
                 continue
-            plan_s = out.seconds.get("plan", math.nan)
+            total = time.monotonic() - t0
+            plan_s = out.seconds.get("plan", nan)
             if not out.solved or out.trajectory is None or out.smoothed is None:
-                rows.append(BenchRow(name, pr.kind, pr.variant, False, plan_s, math.nan, math.nan, math.nan, math.nan, out.result.reason))
-                continue
-            traj = out.trajectory
-            clear = path_min_clearance(out.smoothed, checker)
-            rows.append(
-                BenchRow(
-                    name,
-                    pr.kind,
-                    pr.variant,
-                    True,
-                    plan_s,
-                    path_length(out.smoothed, checker),
-                    clear["self"],
-                    integrated_squared_jerk(traj.t, traj.q),
-                    float(traj.t[-1]),
-                    "",
+                row = BenchRow(name, pset, pr.kind, pr.variant, False, plan_s, total, nan, nan, nan, nan, nan, out.result.reason)
+            else:
+                traj = out.trajectory
+                clear = path_min_clearance(out.smoothed, checker)
+                row = BenchRow(
+                    name, pset, pr.kind, pr.variant, True, plan_s, total, path_length(out.smoothed, checker), clear["self"],
+                    clear["ground"], integrated_squared_jerk(traj.t, traj.q), float(traj.t[-1]), "", dimensionless_jerk(traj.t, traj.q),
                 )
-            )
-            log.info("%s %s/%d: %s in %.2f s", name, pr.kind, pr.variant, "solved" if rows[-1].solved else "failed", plan_s)
+            rows.append(row)
+            if progress is not None:
+                progress(row)
+            log.info("%s %s %s/%d: %s in %.2f s", name, pset, pr.kind, pr.variant, "solved" if row.solved else "failed", plan_s)
     return rows
 
 
-def summary_table(rows: list[BenchRow]) -> str:
-    """Markdown table per planner and kind: success, median/p95 plan time, length, clearance, jerk."""
-    lines = [
-        "| planner | problem | success | plan time median / p95 [s] | path length median | min self clearance [mm] | integrated sq. jerk median [rad²/s⁵] | duration median [s] |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    keys = []
+def _groups(rows: list[BenchRow]) -> list[tuple[str, str, list[BenchRow]]]:
+    """(planner, problem label, rows): crossed kinds one by one, lying60 as one set."""
+    keys: list[tuple[str, str]] = []
     for r in rows:
-        if (r.planner, r.kind) not in keys:
-            keys.append((r.planner, r.kind))
-    for planner, kind in keys:
-        rs = [r for r in rows if r.planner == planner and r.kind == kind]
+        k = (r.planner, r.kind if r.pset == "crossed" else r.pset)
+        if k not in keys:
+            keys.append(k)
+    return [(p, lab, [r for r in rows if r.planner == p and (r.kind if r.pset == "crossed" else r.pset) == lab]) for p, lab in keys]
+
+
+def summary_table(rows: list[BenchRow]) -> str:
+    """Markdown table per problem set and planner: success, times, length, clearance, jerk, duration."""
+    lines = [
+        "| problem | planner | success | plan time median / p95 [s] | total time median / p95 [s] | path length median | "
+        "min self / ground clearance [mm] | integrated sq. jerk median [rad²/s⁵] | dimensionless jerk median | duration median [s] |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    groups = _groups(rows)
+    order = {lab: k for k, lab in enumerate(dict.fromkeys(lab for _, lab, _ in groups))}
+    pl = {p: k for k, p in enumerate(PLANNER_NAMES)}
+    for planner, label, rs in sorted(groups, key=lambda g: (order[g[1]], pl.get(g[0], 99))):
         ok = [r for r in rs if r.solved]
-        times = np.array([r.plan_s for r in rs if r.solved])
 
         def med(vals: list[float]) -> str:
             return f"{np.median(vals):.3g}" if vals else "-"
 
-        t_txt = f"{np.median(times):.2f} / {np.percentile(times, 95):.2f}" if len(times) else "-"
-        clear = f"{1000 * min(r.min_self_clearance_m for r in ok):.1f}" if ok else "-"
+        def mp(vals: list[float]) -> str:
+            return f"{np.median(vals):.2f} / {np.percentile(vals, 95):.2f}" if vals else "-"
+
+        clear = f"{1000 * min(r.min_self_clearance_m for r in ok):.1f} / {1000 * min(r.min_ground_clearance_m for r in ok):.1f}" if ok else "-"
         lines.append(
-            f"| {planner} | {kind} | {len(ok)}/{len(rs)} | {t_txt} | {med([r.path_length for r in ok])} | {clear} | "
-            f"{med([r.jerk for r in ok])} | {med([r.duration_s for r in ok])} |"
+            f"| {label} | {planner} | {len(ok)}/{len(rs)} ({100 * len(ok) / max(1, len(rs)):.0f} %) | {mp([r.plan_s for r in ok])} | "
+            f"{mp([r.total_s for r in ok])} | {med([r.path_length for r in ok])} | {clear} | {med([r.jerk for r in ok])} | "
+            f"{med([r.dimensionless_jerk for r in ok if not math.isnan(r.dimensionless_jerk)])} | {med([r.duration_s for r in ok])} |"
         )
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Command line: run the benchmark and print the Markdown table (and failures)."""
-    ap = argparse.ArgumentParser(description="Energy planner benchmark (paper 004) beside RRT-blossom and RRT-Connect.")
-    ap.add_argument("--n", type=int, default=5, help="variants per problem kind")
-    ap.add_argument("--budget", type=float, default=30.0, help="planning budget per run [s]")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--planners", nargs="*", default=None, help="prefixes: energy rrt_blossom rrt_connect")
-    ap.add_argument("--kinds", nargs="*", default=list(PROBLEM_KINDS), choices=PROBLEM_KINDS)
-    args = ap.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    rows = run_benchmark(n=args.n, budget_s=args.budget, seed=args.seed, planners=args.planners, kinds=tuple(args.kinds))
+def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
+    """Per problem label: on how many problems solved by all planners each planner had the lowest ``measure``."""
+    names = list(dict.fromkeys(r.planner for r in rows))
+    lines = ["| problem | solved by all | " + " | ".join(f"{n} lowest {measure.replace('_', ' ')}" for n in names) + " |", "| --- | --- |" + " --- |" * len(names)]
+    labels = list(dict.fromkeys(r.kind if r.pset == "crossed" else r.pset for r in rows))
+    for lab in labels:
+        by: dict[tuple[str, int], dict[str, BenchRow]] = {}
+        for r in rows:
+            if (r.kind if r.pset == "crossed" else r.pset) == lab:
+                by.setdefault((r.kind, r.variant), {})[r.planner] = r
+        common = [v for v in by.values() if len(v) == len(names) and all(x.solved for x in v.values())]
+        wins = {n: sum(1 for v in common if min(v.values(), key=lambda x: getattr(x, measure)).planner == n) for n in names}
+        lines.append(f"| {lab} | {len(common)} | " + " | ".join(str(wins[n]) for n in names) + " |")
+    return "\n".join(lines)
+
+
+def _load_rows(paths: list[str]) -> list[BenchRow]:
+    rows: list[BenchRow] = []
+    for p in paths:
+        rows += [BenchRow(**r) for r in json.loads(Path(p).read_text())["runs"]]
+    return rows
+
+
+def _print(rows: list[BenchRow]) -> None:
     print(summary_table(rows))
+    print()
+    three = [r for r in rows if r.planner != "energy_raw"]  # the paired counts compare the three planners; the ablation stays out
+    print(paired_jerk_table(three))
+    print()
+    print(paired_jerk_table(three, "dimensionless_jerk"))
     for r in rows:
         if not r.solved:
-            print(f"- {r.planner} {r.kind}/{r.variant}: {r.reason[:200]}")
+            print(f"- {r.planner} {r.pset} {r.kind}/{r.variant}: {r.reason[:300]}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: run the benchmark (or merge saved runs) and print the Markdown tables and failures."""
+    ap = argparse.ArgumentParser(description="Energy planner benchmark (paper 004) beside RRT-blossom and OMPL RRT-Connect.")
+    ap.add_argument("--sets", nargs="*", default=["crossed"], choices=PROBLEM_SETS, help="problem sets")
+    ap.add_argument("--n", type=int, default=5, help="variants per crossed-limb kind")
+    ap.add_argument("--budget", type=float, default=30.0, help="planning budget per run [s]")
+    ap.add_argument("--seed", type=int, default=0, help="crossed-limb jitter seed and planner seed base")
+    ap.add_argument("--lying-seed", type=int, default=1, help="sampling seed of the 60 lying postures")
+    ap.add_argument("--planners", nargs="*", default=None, help=f"prefixes of {', '.join(PLANNER_NAMES)}")
+    ap.add_argument("--kinds", nargs="*", default=list(PROBLEM_KINDS), choices=PROBLEM_KINDS)
+    ap.add_argument("--out", default=None, help="write every run (and the arguments) as JSON here")
+    ap.add_argument("--merge", nargs="*", default=None, help="print the tables of saved --out files instead of running")
+    ap.add_argument("--lying-cache", default=None, help="keep the sampled lying60 problems in this JSON file (reused when it matches)")
+    ap.add_argument("-v", "--verbose", action="store_true")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.merge:
+        _print(_load_rows(args.merge))
+        return 0
+    t0 = time.monotonic()
+    done: list[BenchRow] = []
+
+    def save(row: BenchRow | None = None) -> None:  # after every run, so that a long run keeps what it measured
+        if row is not None:
+            done.append(row)
+        if args.out:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(json.dumps({"args": vars(args), "wall_s": time.monotonic() - t0, "runs": [asdict(r) for r in done]}, indent=1))
+
+    rows = run_benchmark(sets=tuple(args.sets), n=args.n, budget_s=args.budget, seed=args.seed, lying_seed=args.lying_seed,
+                         planners=args.planners, kinds=tuple(args.kinds), progress=save,
+                         lying_cache=args.lying_cache)
+    save()
+    _print(rows)
+    print(f"\nwall {time.monotonic() - t0:.0f} s")
     return 0
 
 

@@ -11,6 +11,9 @@ Pieces, each from the paper section named beside it:
   eq. 7-8) and constrained planning by null-space projection (section 6.1, Algorithm 2,
   eq. 9-13: joint limits and positional constraints such as a hand kept on the ground).
 - ``EnergyWindow``: the local-minimum detector of section 8.
+- ``safe_zone_keyframes``: the output of each leg reduced to its key postures, consecutive ones in
+  one safe subspace (section 5.2: eq. 8 below the threshold and a legal straight motion), instead
+  of every alpha step (Algorithm 1's direct and projected steps zig-zag at the step scale).
 
 Adaptations for a 0.51 m robot (marked "ours" in robot_rise/constants.py):
 
@@ -24,6 +27,13 @@ Adaptations for a 0.51 m robot (marked "ours" in robot_rise/constants.py):
 - A projected step (I - g g^T) D keeps the energy level only to first order; we add a small
   descent component -beta g so the energy of the moving end really decreases (as Algorithm 1's
   expansion toward the canonical postures of section 5.1 intends).
+- Ground contacts as automatic positional constraints (Algorithm 2, eq. 12): a lying robot
+  rests on the floor, and with d = 3 the internal term (exponent d) can outweigh the ground term
+  (exponent 2), so its gradient pushes a resting foot or the torso through the floor and every
+  attempt of Algorithm 1 is rejected. Then the attempts are repeated with the touching points
+  (within GROUND_CONTACT_ZONE_M) that the step would lower held on the plane, in the active-set
+  manner of the joint-limit rows of eq. (13). Section 8 of the paper assumes such "contact
+  invariant" segments.
 - Root translation enters the tangent space scaled: ``ROOT_TRANSLATION_SCALE_M`` metres count as
   one radian, so one step length alpha [rad] bounds both.
 
@@ -82,12 +92,22 @@ __all__ = [
     "plan_energy",
     "EnergyPlanner",
     "FALLOFF_RETRY_SCHEDULE",
+    "GROUND_CONTACT_ZONE_M",
+    "safe_zone_keyframes",
     "tangent_difference",
     "tangent_step",
     "segment_is_valid",
 ]
 
 log = logging.getLogger(__name__)
+
+# Ours: robot points closer than this to a ground plane count as touching it (10 mm: the capsules
+# sit up to a few mm inside the checker's torso and foot geoms); when every plain
+# attempt of an iteration is rejected, the attempts are repeated with those contacts as
+# positional constraints (Algorithm 2), so that the internal term cannot push a resting foot or
+# hand through the floor (a lying robot rests on the ground: paper 004 section 8's "contact
+# invariant" setting).
+GROUND_CONTACT_ZONE_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -111,6 +131,10 @@ class EnergyParams:
         root_translation_scale_m: metres of root travel that count as one radian (ours).
         move_root: let the energy move the root (position and orientation); if False, the root
             follows the straight interpolation only and the energy acts on the joints.
+        ground_contacts: when every plain attempt of an iteration is rejected, repeat them with
+            the touched ground as positional constraints (Algorithm 2; ours: automatic contacts).
+        keyframes: ``plan_energy`` returns the key postures of each leg (``safe_zone_keyframes``,
+            section 5.2) instead of every alpha step.
     """
 
     falloff_d: int = ENERGY_FALLOFF_D
@@ -129,6 +153,8 @@ class EnergyParams:
     verify_resolution_m: float = ENERGY_VERIFY_RESOLUTION_M
     root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M
     move_root: bool = True
+    ground_contacts: bool = True
+    keyframes: bool = True
 
     def __post_init__(self) -> None:
         if self.falloff_d < 1:
@@ -279,6 +305,44 @@ class RepulsiveEnergy:
         if gradient:
             grad = self._generalized_gradient(d, np.concatenate(points), np.concatenate(forces), np.concatenate(slots))
         return EnergyValue(e_int + e_ext, e_int, e_ext, grad, min_self, min_ext)
+
+    def ground_contact_rows(self, qpos: np.ndarray, step_v: np.ndarray, zone_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Active ground contacts as positional constraints (paper 004 eq. 12, ``axes=(normal,)``).
+
+        Candidate points: the capsule end spheres and box corners within ``zone_m`` of a ground or
+        obstacle plane at ``qpos`` (touching, up to the capsule approximation of the checker's
+        geoms). Like the joint-limit rows of eq. (13), a row appears only for a point that the
+        tangent step ``step_v`` (shape (nv,), unscaled) would lower: J_n v = C with
+        C = max(0, -delta), so a touching point may slide along or lift off the plane but not sink
+        (a point already below it, within the checker's tolerance, is lifted back).
+
+        Returns:
+            K (r, nv) rows in unscaled tangent coordinates and C (r,) [m].
+        """
+        m, d = self.model, self._data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        a, b = self.capsules.world_endpoints(d)
+        pc = self._plane_caps
+        corners = d.xpos[self._corner_body] + np.einsum("cij,cj->ci", d.xmat[self._corner_body].reshape(-1, 3, 3), self._corner_local)
+        pts = np.concatenate([a[pc], b[pc], corners])
+        rad = np.concatenate([self.capsules.radius[pc], self.capsules.radius[pc], np.zeros(len(corners))])
+        body = np.concatenate([self.capsules.body[pc], self.capsules.body[pc], self._corner_body]).astype(int)
+        rows: list[np.ndarray] = []
+        targets: list[float] = []
+        jacp = self._jacp
+        for plane in self.planes:
+            delta = plane.signed_distance(pts) - rad
+            for k in np.flatnonzero(delta < zone_m):
+                mujoco.mj_jac(m, d, jacp, None, pts[k], int(body[k]))
+                row = plane.normal @ jacp
+                if float(row @ step_v) < 0.0:
+                    rows.append(row.copy())
+                    targets.append(max(0.0, -float(delta[k])))
+        if not rows:
+            return np.zeros((0, m.nv)), np.zeros(0)
+        return np.array(rows), np.array(targets)
 
     def _generalized_gradient(self, d: mujoco.MjData, pts: np.ndarray, f: np.ndarray, slot: np.ndarray) -> np.ndarray:
         """Sum of J_p^T f over points p on bodies: per body, J_p^T f = jacp^T f + jacr^T (r x f)."""
@@ -473,6 +537,33 @@ def _project_constraints(dq: np.ndarray, K: np.ndarray, C: np.ndarray, g_hat: np
     return dq - J.T @ lam_e
 
 
+def _with_ground_contacts(
+    energy: RepulsiveEnergy, qh: np.ndarray, dy: np.ndarray, K: np.ndarray, C: np.ndarray, g_hat: np.ndarray, scale: np.ndarray, p: EnergyParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """K, C of the step extended by the ground contacts it would push through (active set, 3 passes).
+
+    A contact row is added for every touching point the (projected) step would carry below the
+    ground; projecting can push other points down, so the active set is recomputed from the
+    projected step, keeping the rows found before.
+    """
+    rows: list[np.ndarray] = []
+    targets: list[float] = []
+    step = dy
+    for _ in range(3):
+        Kc, Cc = energy.ground_contact_rows(qh, step / scale, GROUND_CONTACT_ZONE_M)
+        new = [(r / scale, c) for r, c in zip(Kc, Cc) if not any(np.allclose(r / scale, x) for x in rows)]
+        if not new:
+            break
+        rows += [r for r, _ in new]
+        targets += [c for _, c in new]
+        KK = np.vstack([K, np.array(rows)])
+        CC = np.concatenate([C, np.array(targets)])
+        step = _project_constraints(dy, KK, CC, g_hat, p)
+    if not rows:
+        return K, C
+    return np.vstack([K, np.array(rows)]), np.concatenate([C, np.array(targets)])
+
+
 # --- local minimum (section 8) --------------------------------------------------------------------
 
 
@@ -591,6 +682,7 @@ def energy_interpolate(
         "projected_steps": 0,
         "descent_steps": 0,
         "constrained_steps": 0,
+        "contact_steps": 0,
         "rejected_steps": 0,
         "connect_attempts": 0,
         "safe_zone_refuted": 0,
@@ -650,10 +742,16 @@ def energy_interpolate(
             plan.append(("projected_steps", alpha * (proj - beta * g_hat)))
         for frac in (1.0, 0.5, 0.25, 0.125):
             plan.append(("descent_steps", -alpha * frac * g_hat))
-        for attempt, (kind, dy) in enumerate(plan):
+        # then the same attempts again with the touched ground as positional constraints (Algorithm 2)
+        plan_all = [(kind, dy, False) for kind, dy in plan] + ([(kind, dy, True) for kind, dy in plan] if p.ground_contacts else [])
+        for attempt, (kind, dy, contact) in enumerate(plan_all):
             if not np.any(dy):
                 continue
             K, C = cons.rows(qh, dy)
+            if contact:
+                K, C = _with_ground_contacts(energy, qh, dy, K, C, g_hat, scale, p)
+                if K.shape[0] == cons.rows(qh, dy)[0].shape[0]:
+                    continue  # no contact in the way: the plain attempt already said no
             constrained = K.shape[0] > 0
             if constrained:  # Algorithm 2: project onto the constraints' null space
                 dy = _project_constraints(dy, K, C, g_hat, p)
@@ -685,6 +783,7 @@ def energy_interpolate(
             )
         stats[kind] += 1
         stats["constrained_steps"] += int(constrained)
+        stats["contact_steps"] += int(contact)
         ends[h] = q_new
         evals[h] = e_new
         glis[h] = gli(q_new)
@@ -709,6 +808,55 @@ def _verified(checker, path, p, levers, finish, stats) -> InterpolationOutcome:
             return finish(PlanStatus.FAILED, f"verification: segment {k} of {len(path) - 1} is illegal at {p.verify_resolution_m} m", None)
     stats["waypoints"] = len(path)
     return finish(PlanStatus.EXACT_SOLUTION, "", path)
+
+
+def safe_zone_keyframes(
+    checker: ValidityChecker,
+    path: np.ndarray,
+    gli: GliMatrix,
+    *,
+    threshold: float = GLI_SAFE_ZONE_THRESHOLD,
+    resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
+    levers: tuple[float, np.ndarray] | None = None,
+) -> np.ndarray:
+    """The key postures of a legal path: consecutive ones linearly interpolable (paper 004 section 5.2).
+
+    Section 5.2: postures of one safe subspace can be linearly interpolated, and "in the output,
+    every two consecutive postures are in the same subspace". Algorithm 1 takes steps of alpha,
+    alternating direct and projected (eq. 5) steps, so its raw output zig-zags at the step scale.
+    From each key posture P_i we keep the farthest later posture P_j of the path (binary search)
+    with E_gli(P_i, P_j) < ``threshold`` (eq. 8) whose straight motion the checker also finds
+    legal at ``resolution_m``; the path is then P_i -> P_j, ... Deterministic; every kept segment is
+    verified, and consecutive raw postures are always kept as a fallback, so the result is legal.
+
+    Args:
+        path: a legal path as qpos rows, shape (K, nq).
+
+    Returns:
+        the key postures, shape (K', nq), K' <= K, same first and last row.
+    """
+    lev = levers if levers is not None else _levers(checker)
+    mats = [gli(q) for q in path]
+    n = len(path)
+
+    def ok(i: int, j: int) -> bool:
+        return gli_difference(mats[i], mats[j]) < threshold and segment_is_valid(checker, path[i], path[j], resolution_m=resolution_m, levers=lev)
+
+    keep = [0]
+    i = 0
+    while i < n - 1:
+        lo, hi = i + 1, n - 1  # lo: legal (a verified raw segment)
+        if ok(i, hi):
+            lo = hi
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            if ok(i, mid):
+                lo = mid
+            else:
+                hi = mid - 1
+        keep.append(lo)
+        i = lo
+    return path[keep]
 
 
 FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
@@ -775,7 +923,11 @@ def plan_energy(
             reason = "; ".join(reasons) if status is PlanStatus.FAILED and reasons else out.reason
             stats["seconds"] = time.monotonic() - t0
             return PlanResult(status, None, f"leg {k}: {reason}" if len(legs) > 2 else reason, stats)
-        rows.extend(out.qpos if k == 0 else out.qpos[1:])
+        q_leg = out.qpos
+        if params.keyframes and len(q_leg) > 2:
+            q_leg = safe_zone_keyframes(checker, q_leg, gli, threshold=params.gli_threshold, resolution_m=params.verify_resolution_m)
+            stats["legs"][-1]["key_postures"] = len(q_leg)
+        rows.extend(q_leg if k == 0 else q_leg[1:])
     stats["seconds"] = time.monotonic() - t0
     stats["waypoints"] = len(rows)
     postures: list[Posture] = [posture_from_qpos(robot, checker.index, q) for q in rows]
