@@ -22,7 +22,7 @@ from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import ROBUSTNESS_CHECKS, FilterResult, FilterSettings, ModelError, dynamics_filter, join_with_blend, prove, stands_under
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
-from robot_rise.planning.bench_problems import align_to_start
+from robot_rise.placement import place_near
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import Posture, validate_posture
@@ -144,13 +144,10 @@ def connection_candidates(
 
 
 def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connection, start: Posture, checker: ValidityChecker) -> Posture:
-    """The connecting posture of a connection, turned and placed where the robot lies.
+    """The connecting posture of a connection, placed where the robot lies (placement.place_near).
 
-    It is placed at the start's position and facing; when that placement collides with an
-    obstacle, nearby placements are tried (rings of PLACEMENT_STEP_M up to PLACEMENT_MAX_M, and
-    small turns), nearest first. The planner then plans the root there (paper 000 section
-    4.2.1 plans the root position when the postures differ in it); the dynamics filter decides
-    whether the robot can really get there.
+    The planner then plans the root there (paper 000 section 4.2.1 plans the root position when
+    the postures differ in it); the dynamics filter decides whether the robot can get there.
     """
     motion = library.get(connection.motion)
     tr = motion.trajectory
@@ -159,38 +156,7 @@ def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connect
     # Library targets may graze a limit by rounding; the planner needs a goal inside the limits.
     joints = np.clip(tr.q[connection.frame, cols], robot.joint_lower, robot.joint_upper)
     goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, joints)))
-    # Rest it at the height the robot lies at (the floor, a bed, a slope under the start).
-    floor_z = checker.lowest_point_z(checker.qpos_of(start))
-    placed = _place(goal, start, checker, start.root_pos[:2], floor_z)
-    for offset in [np.zeros(2), *_placements()]:
-        base = _place(goal, start, checker, start.root_pos[:2] + offset, floor_z)
-        for dz in PLACEMENT_LIFTS_M:  # resting on something higher (a bed) under part of the body
-            candidate = base.with_root(base.root_pos + np.array([0.0, 0.0, dz]))
-            if checker.is_valid(candidate):
-                return candidate
-    return placed  # the planner reports why it is invalid
-
-
-def _place(goal: Posture, start: Posture, checker: ValidityChecker, xy: np.ndarray, floor_z: float) -> Posture:
-    """``goal`` turned to the start's facing, at ``xy``, its lowest point at ``floor_z``."""
-    g = align_to_start(goal, start, checker, xy=xy)  # facing and xy (rests it on z = 0)
-    low = checker.lowest_point_z(checker.qpos_of(g))
-    return g.with_root(g.root_pos + np.array([0.0, 0.0, floor_z - low]))
-
-
-PLACEMENT_STEP_M = 0.05  # rings of candidate placements around the start [m]
-PLACEMENT_MAX_M = 0.25
-PLACEMENT_LIFTS_M = (0.0, 0.02, 0.04, 0.06, 0.08)  # candidate heights above the start's floor [m]
-
-
-def _placements() -> list[np.ndarray]:
-    out = []
-    r = PLACEMENT_STEP_M
-    while r <= PLACEMENT_MAX_M + 1e-9:
-        for a in np.linspace(0, 2 * np.pi, 8, endpoint=False):
-            out.append(r * np.array([np.cos(a), np.sin(a)]))
-        r += PLACEMENT_STEP_M
-    return out
+    return place_near(goal, start, checker)
 
 
 def rise(

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.model import Robot
-from robot_rise.posture import Posture, quat_multiply
+from robot_rise.placement import align_to_start
+from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
@@ -48,29 +49,6 @@ def fallback_connecting_posture(robot: Robot) -> Posture:
             q[i] *= CROUCH_LEG_SCALE
     q = np.clip(q, robot.joint_lower, robot.joint_upper)
     return Posture(robot.name, np.zeros(3), robot.stand_qpos[3:7], dict(zip(robot.joint_names, q)))
-
-
-def _best_yaw(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """R_z(psi) q with psi minimising the orientation distance to q_ref (see posture.py)."""
-    k = np.array([0.0, 0.0, 0.0, 1.0])
-    a = float(np.dot(q_ref, q))
-    b = float(np.dot(q_ref, quat_multiply(k, q)))
-    half = math.atan2(b, a)
-    rz = np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
-    out = quat_multiply(rz, q)
-    return out / np.linalg.norm(out)
-
-
-def align_to_start(goal: Posture, start: Posture, checker: ValidityChecker, *, xy: np.ndarray | None = None) -> Posture:
-    """Goal turned to the start's facing direction, at the start's (or given) x, y, resting on the ground.
-
-    The root height puts the lowest robot point at z = 0 (the ground plane of the shipped scenes).
-    """
-    quat = _best_yaw(start.root_quat_wxyz, goal.root_quat_wxyz)
-    pos = np.array([*(start.root_pos[:2] if xy is None else xy), 0.0])
-    g = goal.with_root(pos, quat)
-    low = checker.lowest_point_z(checker.qpos_of(g))
-    return g.with_root(pos - np.array([0.0, 0.0, low]))
 
 
 def connecting_posture_for(start: Posture, checker: ValidityChecker) -> Posture:
