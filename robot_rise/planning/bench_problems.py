@@ -19,7 +19,7 @@ import numpy as np
 
 from robot_rise.model import Robot
 from robot_rise.placement import align_to_start
-from robot_rise.posture import Posture
+from robot_rise.posture import Posture, quat_multiply
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
