@@ -44,6 +44,26 @@ def test_library_covers_prone_with_at_least_two_strategies() -> None:
     assert sum(m.lying == "prone" for m in LIBRARY.motions) >= 2
 
 
+def test_library_covers_supine_with_two_strategies_and_each_side() -> None:
+    kinds = [m.lying for m in LIBRARY.motions]
+    assert kinds.count("supine") >= 2
+    assert kinds.count("left") >= 1 and kinds.count("right") >= 1
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_start_posture_and_connect_phase_lie_as_the_index_says(name: str) -> None:
+    """The start posture is settled lying of the indexed kind, and the connect phase (frames the
+    planner connects random postures of that kind to) never lies another way: a roll-over motion
+    connects only before its roll, a prone motion up to its squat."""
+    from robot_rise.sampling import classify_lying
+
+    m = LIBRARY.get(name)
+    assert classify_lying(m.start.root_quat_wxyz) == m.lying
+    rows = np.flatnonzero(m.trajectory.t <= m.connect_until_s + 1e-9)
+    kinds = {classify_lying(m.trajectory.root[r, 3:]) for r in rows}
+    assert m.lying in kinds and kinds <= {m.lying, "upright"}, kinds
+
+
 def test_an_index_with_a_wrong_format_string_is_rejected(tmp_path: Path) -> None:
     shutil.copytree(default_library_dir(), tmp_path / "lib")
     idx = tmp_path / "lib" / "index.json"
@@ -125,3 +145,31 @@ def test_selected_connecting_posture_faces_like_the_lying_robot_and_is_a_library
     assert goal.root_pos[:2] == pytest.approx(start.root_pos[:2])
     # the library's own start posture connects to (nearly) itself
     assert float(yaw_aligned_orientation_distance(goal.root_quat_wxyz, start.root_quat_wxyz)) < 0.05
+
+
+def test_mirror_swaps_sides_with_the_sign_convention_of_the_model() -> None:
+    from robot_rise.library_authoring import mirror, sym
+
+    assert mirror(sym(knee=1.0, hip_roll=0.2)) == sym(knee=1.0, hip_roll=0.2)  # symmetric stays
+    m = mirror({"l_sho_roll": -1.2, "head_pan": 0.5, "head_tilt": 0.1})
+    assert m == {"r_sho_roll": 1.2, "head_pan": -0.5, "head_tilt": 0.1}
+    assert mirror(m) == {"l_sho_roll": -1.2, "head_pan": 0.5, "head_tilt": 0.1}
+
+
+def test_side_motions_are_mirror_images() -> None:
+    """right_tip_forward is authored as the mirror of left_tip_forward: their starts mirror too."""
+    if not {"left_tip_forward", "right_tip_forward"} <= set(NAMES):
+        pytest.skip("side motions not in the library")
+    from robot_rise.library_authoring import mirror
+
+    left, right = LIBRARY.get("left_tip_forward").start, LIBRARY.get("right_tip_forward").start
+    mirrored = mirror(dict(left.joints))
+    for j, v in right.joints.items():
+        assert v == pytest.approx(mirrored[j], abs=0.02), j
+
+
+def test_index_reports_each_motions_true_duration() -> None:
+    rows = {r["name"]: r for r in json.loads((default_library_dir() / "index.json").read_text())["motions"]}
+    for m in LIBRARY.motions:
+        assert rows[m.name]["duration_s"] == pytest.approx(m.trajectory.duration_s, abs=1e-3)
+        assert m.trajectory.report["peak_envelope_ratio"] <= TORQUE_BOUND
