@@ -15,7 +15,7 @@ found so far (triangle inequality). The answer is therefore always the brute-for
 tree only saves distance evaluations.
 
 Branching factor: N = 50 as in the paper, leaves of at most 40 frames. Measured over N in
-{8, 12, 20, 30, 40, 50} (robot_rise/BENCHMARKS_library.md): with under two thousand frames a wide,
+{8, 12, 20, 30, 40, 50} (BENCHMARKS.md, motion library section): with under two thousand frames a wide,
 shallow tree (depth 3) is fastest, because each level is searched with one vectorised call and the
 per-call overhead, not the number of distances, dominates in Python.
 """
