@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError
+from robot_rise.fileio import write_text_atomic
 from robot_rise.model import ModelIndex, Robot
 
 __all__ = [
@@ -218,10 +219,7 @@ def read_posture(path: str | os.PathLike[str], robot: Robot | None = None, *, li
 
 def write_posture(path: str | os.PathLike[str], p: Posture) -> None:
     """Write a posture file atomically (write to a temporary file, then rename)."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(posture_to_dict(p), indent=1) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(posture_to_dict(p), indent=1) + "\n")
 
 
 # --- quaternions (w, x, y, z), vectorised over leading axes ---------------------------------------

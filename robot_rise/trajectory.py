@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import FormatError
+from robot_rise.fileio import write_text_atomic
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict
 
 __all__ = ["Trajectory", "TRAJECTORY_FORMAT", "read_trajectory", "write_trajectory", "trajectory_from_dict", "trajectory_to_dict", "write_csv"]
@@ -179,11 +180,7 @@ def read_trajectory(path: str | os.PathLike[str]) -> Trajectory:
 
 def write_trajectory(path: str | os.PathLike[str], tr: Trajectory) -> None:
     """Write a trajectory file atomically (temporary file, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(trajectory_to_dict(tr)) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(trajectory_to_dict(tr)) + "\n")
 
 
 def write_csv(path: str | os.PathLike[str], tr: Trajectory) -> None:
