@@ -6,7 +6,6 @@ This is the only place where joint angles become servo ticks:
 
 from __future__ import annotations
 
-import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass

@@ -45,7 +45,6 @@ from robot_rise.constants import (
     BLOSSOM_STEP_POSITION_M,
 )
 from robot_rise.planning.motion_validator import MotionValidator
-from robot_rise.planning.space import PostureSpace
 
 __all__ = ["BlossomConfig", "BlossomOutcome", "EdgeState", "rrt_blossom"]
 
