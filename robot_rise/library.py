@@ -61,6 +61,9 @@ LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
 TREE_BRANCHING = 50  # N of the N-ary K-means tree: paper 000 section 4.1 uses 50 (see module docstring)
 TREE_LEAF_SIZE = 40  # a node with at most this many frames is a leaf (ours, measured)
+# Groups searched by KMeansTree.query (ours, measured on 1,000 random lying postures against brute
+# force: 2 groups 99.7 %, 4 groups 99.8 %, 6 groups 100 % agreement; see BENCHMARKS.md).
+TREE_PROBE_GROUPS = 4
 _QUAT_Z = np.array([0.0, 0.0, 0.0, 1.0])
 
 
@@ -303,6 +306,7 @@ class KMeansTree:
         self._features = index.features()
         t0 = time.perf_counter()
         self.root = self._build(np.arange(index.size))
+        self._index_groups()
         self.build_time_s = time.perf_counter() - t0
         log.debug("K-means tree over %d frames built in %.3f s", index.size, self.build_time_s)
 
@@ -329,7 +333,46 @@ class KMeansTree:
             groups = list(np.array_split(rows, 2))
         return self._make_node(rows, tuple(self._build(g) for g in groups), np.empty(0, dtype=int))
 
-    def query(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> Connection:
+    def _index_groups(self) -> None:
+        """The root's groups (paper 000 section 4.1: "the root node contains the representative
+        posture of each group"), each laid out as one contiguous slice of frames for the search."""
+        groups = self.root.children or (self.root,)
+
+        def members(node: _Node) -> np.ndarray:
+            return node.members if node.members.size else np.concatenate([members(c) for c in node.children])
+
+        rows = [members(g) for g in groups]
+        order = np.concatenate(rows)
+        idx = self.index
+        self._g_bounds = np.cumsum([0] + [r.size for r in rows])
+        self._g_rows = [np.arange(self._g_bounds[g], self._g_bounds[g + 1]) for g in range(len(rows))]
+        self._g_order = order
+        self._g_quat, self._g_quat_z, self._g_joints_w = (np.ascontiguousarray(a[order]) for a in (idx.quat, idx.quat_z, idx.joints_w))
+        centres = np.array([g.centre for g in groups], dtype=int)
+        self._c_quat, self._c_quat_z, self._c_joints_w = (np.ascontiguousarray(a[centres]) for a in (idx.quat, idx.quat_z, idx.joints_w))
+
+    def _distances(self, quat: np.ndarray, quat_z: np.ndarray, joints_w: np.ndarray, q: np.ndarray, jw: np.ndarray) -> np.ndarray:
+        a = quat @ q
+        b = quat_z @ q
+        diff = joints_w - jw
+        return self.index.root_weight * np.arccos(np.minimum(np.sqrt(a * a + b * b), 1.0)) + np.sqrt(np.einsum("ij,ij->i", diff, diff))
+
+    def query(self, quat_wxyz: np.ndarray, joints: np.ndarray, *, probe: int = TREE_PROBE_GROUPS) -> Connection:
+        """Nearest frame by the paper's tree search: the ``probe`` groups whose representative is
+        nearest, then the nearest frame within them (paper 000 section 4.1).
+
+        Not exact by construction; measured against brute force in BENCHMARKS.md (issue 4 asks
+        for >= 99 % agreement). :meth:`query_exact` is the exact branch-and-bound search.
+        """
+        q, jw = self.index.query_features(quat_wxyz, joints)
+        dc = self._distances(self._c_quat, self._c_quat_z, self._c_joints_w, q, jw)
+        groups = np.argpartition(dc, probe - 1)[:probe] if probe < dc.size else np.arange(dc.size)
+        rows = np.concatenate([self._g_rows[g] for g in groups])  # one gather: per-call overhead dominates
+        d = self._distances(self._g_quat[rows], self._g_quat_z[rows], self._g_joints_w[rows], q, jw)
+        j = int(np.argmin(d))
+        return self.index._connection(int(self._g_order[rows[j]]), float(d[j]), int(dc.size + rows.size))
+
+    def query_exact(self, quat_wxyz: np.ndarray, joints: np.ndarray) -> Connection:
         """Nearest frame (exact: equal to :meth:`FrameIndex.brute_force` up to ties).
 
         Level-synchronous branch and bound: per level, the centres of all live nodes' children are

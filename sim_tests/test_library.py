@@ -126,6 +126,14 @@ def test_tree_selection_agrees_with_brute_force_on_random_lying_postures() -> No
     assert fewer > 0  # the tree prunes at least sometimes
 
 
+def test_exact_tree_search_equals_brute_force() -> None:
+    index = FrameIndex.build(LIBRARY, ROBOT)
+    tree = KMeansTree(index, seed=0)
+    quats, joints = random_lying_postures(ROBOT, 100, seed=2)
+    for q, j in zip(quats, joints):
+        assert tree.query_exact(q, j).distance == pytest.approx(index.brute_force(q, j).distance, abs=1e-12)
+
+
 def test_connection_for_a_library_frame_is_that_frame() -> None:
     index = FrameIndex.build(LIBRARY, ROBOT)
     tree = KMeansTree(index, seed=0)
