@@ -49,7 +49,7 @@ def test_that_a_single_joint_move_follows_a_trapezoidal_profile(robot):
     joints = np.zeros((2, robot.n_joints))
     joints[1, 3] = d
     lim = TimingLimits(np.full(robot.n_joints, 2.0), np.full(robot.n_joints, 8.0))
-    tp = time_parameterize(_seq(robot, joints), robot, limits=lim, sample_period_s=0.01)
+    tp = time_parameterize(_seq(robot, joints), robot, limits=lim, sample_period_s=0.01, jerk_window_s=0.0)
     v, a = 2.0, 8.0
     trapezoid = d / v + v / a  # accelerate to v, cruise, decelerate: 0.75 s
     assert tp.duration_s == pytest.approx(trapezoid, rel=0.05)
@@ -62,3 +62,22 @@ def test_that_a_single_joint_move_follows_a_trapezoidal_profile(robot):
 def test_that_a_single_posture_gives_a_single_row(robot):
     tp = time_parameterize(_seq(robot, np.zeros((1, robot.n_joints))), robot)
     assert tp.t.tolist() == [0.0] and tp.joints.shape == (1, robot.n_joints)
+
+
+def test_that_the_default_profile_limits_jerk_at_the_cost_of_one_window(robot):
+    from robot_rise.planning.timing import JERK_WINDOW_S
+
+    joints = np.zeros((2, robot.n_joints))
+    joints[1, 3] = 1.0
+    lim = TimingLimits(np.full(robot.n_joints, 2.0), np.full(robot.n_joints, 8.0))
+    plain = time_parameterize(_seq(robot, joints), robot, limits=lim, sample_period_s=0.005, jerk_window_s=0.0)
+    smooth = time_parameterize(_seq(robot, joints), robot, limits=lim, sample_period_s=0.005)
+    assert smooth.duration_s == pytest.approx(plain.duration_s + JERK_WINDOW_S, abs=0.02)
+
+    def peak_jerk(tp):
+        x = tp.joints[:, 3]
+        dt = np.diff(tp.t).mean()
+        return np.abs(np.diff(x, 3)).max() / dt**3
+
+    assert peak_jerk(smooth) < 0.25 * peak_jerk(plain)
+    assert smooth.max_velocity_ratio <= 1 + 1e-6 and smooth.max_accel_ratio <= 1 + 1e-6

@@ -44,6 +44,9 @@ __all__ = ["TimingLimits", "TimedPath", "time_parameterize", "measured_rates"]
 log = logging.getLogger(__name__)
 
 DEFAULT_SAMPLE_PERIOD_S = 0.02  # rows of the output every 20 ms (50 Hz)
+# Ours: the trapezoid's acceleration steps become 0.1 s ramps (jerk <= ~2 a_max / 0.1 s); the
+# paper's constant speed (000 section 4.3) and a plain trapezoid both have unbounded jerk.
+JERK_WINDOW_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -158,6 +161,7 @@ def time_parameterize(
     sample_period_s: float = DEFAULT_SAMPLE_PERIOD_S,
     max_step_rad: float = 0.01,
     max_step_m: float = 0.002,
+    jerk_window_s: float = JERK_WINDOW_S,
 ) -> TimedPath:
     """Fastest timing of a posture sequence within the limits (see module docstring).
 
@@ -167,6 +171,8 @@ def time_parameterize(
         limits: velocity and acceleration limits (default: from the robot's servos).
         sample_period_s: period of the output rows [s].
         max_step_rad, max_step_m: densification before timing [rad], [m].
+        jerk_window_s: the trapezoid's speed is averaged over this window, bounding jerk (0: a
+            plain trapezoid).
 
     Returns:
         TimedPath whose rows start and end at rest on the first and last posture and whose
@@ -211,10 +217,11 @@ def time_parameterize(
         v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2.0 * amax[i]))
     seg_t = np.array([_segment_time(v[i], v[i + 1], vmax[i], amax[i]) for i in range(k - 1)])
     knots_t = np.concatenate([[0.0], np.cumsum(seg_t)])
+    smooth_t, smooth_s = _jerk_limited(knots_t, v, vmax, amax, jerk_window_s)
     scale = 1.0
     for _ in range(20):
-        t_out = _row_times(float(knots_t[-1]) * scale, sample_period_s)
-        s_out = _progress(t_out / scale, knots_t, v, vmax, amax)
+        t_out = _row_times(float(smooth_t[-1]) * scale, sample_period_s)
+        s_out = np.clip(np.interp(t_out / scale, smooth_t, smooth_s), 0.0, k - 1)
         root, joints = _at_progress(s_out, pos, quat, q)
         vr, ar = measured_rates(t_out, root, joints, lim)
         need = max(vr, np.sqrt(ar))
@@ -223,6 +230,35 @@ def time_parameterize(
         scale *= need * 1.01
     log.debug("timed %d knots: %.3f s (stretch %.3f), velocity %.2f, accel %.2f of limits", k, t_out[-1], scale, vr, ar)
     return TimedPath(t_out, root, joints, tuple(seq.joint_names), vr, ar)
+
+
+def _jerk_limited(knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Progress s(t) of the trapezoidal profile with its speed averaged over ``window_s``.
+
+    A moving average of the path speed keeps every speed and acceleration bound of the trapezoid
+    (an average never exceeds the largest value it averages) and turns its acceleration steps into
+    ramps, so jerk is bounded by ~2 a_max / window_s instead of infinite. It lengthens the motion
+    by one window.
+
+    Returns:
+        (t, s): times [s] and progress [segments], fine-grained (1 ms), s from 0 to the last knot.
+    """
+    total = float(knots_t[-1])
+    n = max(2, int(np.ceil(total / _FINE_DT_S)) + 1)
+    fine_t = np.linspace(0.0, total, n)
+    s = _progress(fine_t, knots_t, v, vmax, amax)
+    dt = fine_t[1] - fine_t[0]
+    w = int(round(window_s / dt)) if window_s > 0 else 0
+    if w < 2:
+        return fine_t, s
+    speed = np.diff(s) / dt
+    speed = np.convolve(speed, np.full(w, 1.0 / w))
+    out = np.concatenate([[0.0], np.cumsum(speed) * dt])
+    out *= s[-1] / out[-1]  # same end, exactly
+    return np.arange(out.size) * dt, out
+
+
+_FINE_DT_S = 0.001  # resolution of the jerk-limited progress curve [s]
 
 
 def _segment_time(v0: float, v1: float, vmax: float, amax: float) -> float:
