@@ -33,6 +33,9 @@ __all__ = [
     "compose",
     "model_index",
     "GROUND_PREFIX",
+    "GEOM_ROBOT",
+    "GEOM_GROUND",
+    "GEOM_OBSTACLE",
     "SIM_TIMESTEP_S",
     "SUPPLY_VOLTAGE_V",
 ]
@@ -42,6 +45,7 @@ log = logging.getLogger(__name__)
 ROBOT_FORMAT = "robot-rise/robot@1"
 SERVOS_FORMAT = "robot-rise/servos@1"
 GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are obstacles
+GEOM_ROBOT, GEOM_GROUND, GEOM_OBSTACLE = 0, 1, 2  # ModelIndex.geom_kind values
 SIM_TIMESTEP_S = 0.002  # physics step: 500 Hz (issue 4 asks for >= 500 Hz)
 SUPPLY_VOLTAGE_V = 12.0  # servo supply the actuators are modelled at
 _ATTACH_PREFIX = "robot_rise:"
@@ -282,6 +286,7 @@ class ModelIndex:
         actuators: per-joint actuator indices, shape (n,) (empty if composed without actuators).
         robot_geoms, ground_geoms, obstacle_geoms: geom id arrays.
         root_body: body id of the root.
+        geom_kind: per geom of the model, GEOM_ROBOT, GEOM_GROUND or GEOM_OBSTACLE, shape (ngeom,).
     """
 
     qpos_root: np.ndarray
@@ -293,6 +298,7 @@ class ModelIndex:
     ground_geoms: np.ndarray
     obstacle_geoms: np.ndarray
     root_body: int
+    geom_kind: np.ndarray
 
 
 def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
@@ -312,6 +318,9 @@ def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
         arr.setflags(write=False)
         return arr
 
+    kind = np.full(m.ngeom, GEOM_ROBOT, dtype=np.int8)
+    kind[ground] = GEOM_GROUND
+    kind[obstacles] = GEOM_OBSTACLE
     qa, da = int(m.jnt_qposadr[free]), int(m.jnt_dofadr[free])
     return ModelIndex(
         qpos_root=ro(np.arange(qa, qa + 7)),
@@ -323,6 +332,7 @@ def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
         ground_geoms=ro(ground),
         obstacle_geoms=ro(obstacles),
         root_body=root_body,
+        geom_kind=ro(kind),
     )
 
 

@@ -146,9 +146,7 @@ class Player:
         rg = self.index.robot_geoms
         self._robot_geom_col = np.full(m.ngeom, -1, dtype=int)
         self._robot_geom_col[rg] = np.arange(rg.size)
-        self._geom_kind = np.zeros(m.ngeom, dtype=np.int8)  # 0 robot, 1 ground, 2 obstacle
-        self._geom_kind[self.index.ground_geoms] = 1
-        self._geom_kind[self.index.obstacle_geoms] = 2
+        self._geom_kind = self.index.geom_kind  # 0 robot, 1 ground, 2 obstacle
         self._is_foot_geom = np.zeros(m.ngeom, dtype=bool)
         for g in rg:
             if int(m.geom_bodyid[g]) in foot_bodies:

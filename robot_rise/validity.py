@@ -136,10 +136,7 @@ class ValidityChecker:
         self._qj_slice: slice | np.ndarray = slice(int(qj[0]), int(qj[0]) + len(qj)) if contiguous else qj
         self._mid = (self._lower + self._upper) / 2
         self._half = (self._upper - self._lower) / 2
-        kinds = np.zeros(self.model.ngeom, dtype=np.int8)  # 0 robot, 1 ground, 2 obstacle
-        kinds[self.index.ground_geoms] = 1
-        kinds[self.index.obstacle_geoms] = 2
-        self._geom_kind = kinds
+        self._geom_kind = self.index.geom_kind  # 0 robot, 1 ground, 2 obstacle
         self._geom_names = [self.model.geom(g).name or f"geom{g}" for g in range(self.model.ngeom)]
 
     # --- construction helpers -----------------------------------------------------------------

@@ -8,9 +8,12 @@ import sys
 import time
 from typing import Any
 
+from robot_rise.errors import RobotRiseError
 from robot_rise.model import Robot, load_robot
+from robot_rise.posture import validate_posture
+from robot_rise.trajectory import Trajectory, read_trajectory
 
-__all__ = ["add_robot_args", "load_robot_arg", "Progress", "print_json", "Formatter"]
+__all__ = ["add_robot_args", "load_robot_arg", "load_trajectory_for", "Progress", "print_json", "Formatter"]
 
 
 class Formatter(argparse.RawDescriptionHelpFormatter):
@@ -30,6 +33,15 @@ def add_robot_args(p: argparse.ArgumentParser, *, scene: bool = True) -> None:
 
 def load_robot_arg(args: argparse.Namespace) -> Robot:
     return load_robot(getattr(args, "robot", None))
+
+
+def load_trajectory_for(robot: Robot, path: str) -> Trajectory:
+    """Read a trajectory file and check it belongs to ``robot`` and starts in a valid posture."""
+    tr = read_trajectory(path)
+    if tr.robot != robot.name:
+        raise RobotRiseError(f"{path} is for robot {tr.robot!r}, not {robot.name!r}", hint="pass --robot DIR")
+    validate_posture(tr.start, robot, where=f"{path}: start")
+    return tr
 
 
 class Progress:

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
+from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import RobotRiseError
 from robot_rise.filter import FilterSettings, prove
-from robot_rise.posture import validate_posture
-from robot_rise.trajectory import read_trajectory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,10 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
-    tr = read_trajectory(args.trajectory)
-    if tr.robot != robot.name:
-        raise RobotRiseError(f"{args.trajectory} is for robot {tr.robot!r}, not {robot.name!r}", hint="pass --robot DIR")
-    validate_posture(tr.start, robot, where=f"{args.trajectory}: start")
+    tr = load_trajectory_for(robot, args.trajectory)
     if not 0 <= args.margin < 1:
         raise RobotRiseError("--margin must be in [0, 1)")
     _, verdict, report = prove(robot, tr, scene=args.scene, settings=FilterSettings(envelope_margin=args.margin))

@@ -4,15 +4,12 @@ from __future__ import annotations
 
 import argparse
 
-from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, print_json
+from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import RobotRiseError
-from robot_rise.model import Robot
-from robot_rise.posture import validate_posture
 from robot_rise.render import CAMERA_PRESETS, CameraSpec, render
 from robot_rise.sim import DEFAULT_HOLD_S
-from robot_rise.trajectory import Trajectory, read_trajectory
 
-__all__ = ["register", "run", "add_camera_args", "camera_from_args", "load_trajectory_for"]
+__all__ = ["register", "run", "add_camera_args", "camera_from_args", "load_trajectory_for"]  # re-exported from _common for callers
 
 
 def add_camera_args(p: argparse.ArgumentParser) -> None:
@@ -30,15 +27,6 @@ def add_camera_args(p: argparse.ArgumentParser) -> None:
 
 def camera_from_args(args: argparse.Namespace) -> CameraSpec:
     return CameraSpec(args.camera, azimuth_deg=args.azimuth, elevation_deg=args.elevation, distance_m=args.distance)
-
-
-def load_trajectory_for(robot: Robot, path: str) -> Trajectory:
-    """Read a trajectory file and check it belongs to ``robot`` and starts in a valid posture."""
-    tr = read_trajectory(path)
-    if tr.robot != robot.name:
-        raise RobotRiseError(f"{path} is for robot {tr.robot!r}, not {robot.name!r}", hint="pass --robot DIR")
-    validate_posture(tr.start, robot, where=f"{path}: start")
-    return tr
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 
 from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, print_json
-from robot_rise.cli.cmd_render import add_camera_args, camera_from_args, load_trajectory_for
+from robot_rise.cli._common import load_trajectory_for
+from robot_rise.cli.cmd_render import add_camera_args, camera_from_args
 from robot_rise.errors import RobotRiseError
 from robot_rise.filter import FilterSettings
 from robot_rise.report import write_report
