@@ -80,3 +80,48 @@ def test_that_plan_prints_a_json_summary_on_request(beam, capsys):
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["status"] == "exact solution" and summary["rows"] > 2
+
+
+def _key(robot, p):
+    """The lying posture with both elbows bent 0.3 rad: legal, and not a library posture."""
+    from robot_rise.posture import Posture
+
+    j = dict(p.start.joints)
+    j["l_el"] -= 0.3
+    j["r_el"] += 0.3
+    return Posture(robot.name, p.start.root_pos, p.start.root_quat_wxyz, j)
+
+
+def test_that_plan_with_a_key_and_no_goal_passes_the_key_and_connects_it_to_the_library(beam, capsys):
+    """Paper 000 section 5.1: a key posture not in the library is connected to the library by planning again."""
+    from robot_rise.planning.problem import select_goal
+    from robot_rise.rise import RiseContext
+
+    robot, p, d = beam
+    key = _key(robot, p)
+    write_posture(d / "key.json", key)
+    rc = main(["plan", "--from", str(d / "lying.json"), "--key", str(d / "key.json"), "--seed", "2", "--budget", "20", "--out", str(d / "k.json")])
+    assert rc == 0, capsys.readouterr().err
+    assert "connecting posture:" in capsys.readouterr().err
+    tr = read_trajectory(d / "k.json")
+    expected = select_goal(RiseContext.build(robot, "flat"), p.start, key)
+    assert expected.key is key  # not in the library: passed through, then the library posture nearest it
+    np.testing.assert_allclose(tr.q[-1], expected.goal.joint_vector(robot.joint_names), atol=1e-5)
+    kv = key.joint_vector(robot.joint_names)
+    assert np.min(np.max(np.abs(tr.q - kv), axis=1)) < 0.02  # a timed row within 0.02 rad of the key posture
+
+
+def test_that_the_smoothed_path_passes_exactly_through_the_key_posture(beam):
+    from robot_rise.planning.problem import PlanningProblem
+    from robot_rise.planning.space import PostureSpace
+    from robot_rise.planning.to_trajectory import plan_trajectory
+
+    robot, p, _ = beam
+    key = _key(robot, p)
+    checker = ValidityChecker(robot, "beam")
+    out = plan_trajectory(PlanningProblem(p.start, p.goal, checker, key=key, budget_s=20.0, seed=1))
+    assert out.trajectory is not None, out.result.reason
+    space = PostureSpace.for_robot(robot)
+    sm = out.smoothed
+    x = np.concatenate([sm.root_pos, sm.root_quat_wxyz, sm.joints], axis=1)
+    assert float(np.min(space.distance(x, space.state(key)))) < 1e-9

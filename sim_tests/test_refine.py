@@ -96,3 +96,32 @@ def test_that_an_invalid_key_posture_is_refused(robot, scenes):
     key = p.goal.with_root(np.array([0.22, 0.0, 0.05]))  # inside the beam
     res = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, key=key, budget_s=5.0))
     assert res.status is PlanStatus.INVALID_GOAL and "key posture" in res.reason
+
+
+@pytest.mark.parametrize("merge_gap, replans", [(2, 1), (1, 2)])
+def test_that_cut_and_merge_replans_only_the_illegal_segments_and_keeps_the_rest(robot, merge_gap, replans):
+    """Section 4.2.4: legal waypoints around the illegal ones are kept; close illegal runs are replanned as one."""
+    from robot_rise.planning.refine import PlannerConfig, _Run
+
+    checker = ValidityChecker(robot, "flat")
+    space = PostureSpace.for_robot(robot)
+    x0 = np.asarray(robot.stand_qpos, dtype=float).copy()
+    assert checker.is_valid_qpos(space.qpos(x0, checker))
+    j = robot.joint_names.index("l_sho_pitch")
+    path = np.repeat(x0[None], 9, axis=0)
+    path[:, 7 + j] = np.clip(np.linspace(0.0, 0.6, 9) + x0[7 + j], space.lower[j], space.upper[j])
+    sunk = path.copy()
+    sunk[[2, 5], 2] -= 0.05  # feet 5 cm into the ground at waypoints 2 and 5
+    v = MotionValidator(checker, space)
+    assert not v.illegal_edges(path).any()
+    assert list(np.flatnonzero(v.illegal_edges(sunk))) == [1, 2, 4, 5]
+    planner = RRTBlossomPlanner(PlannerConfig(merge_gap=merge_gap))
+    run = _Run(robot, space, planner.config, np.random.default_rng(0), float("inf"))
+    out = planner._repair(run, v, sunk, "test")
+    assert not v.illegal_edges(out).any()
+    np.testing.assert_array_equal(out[:2], sunk[:2])  # the legal start of the path is kept
+    np.testing.assert_array_equal(out[-3:], sunk[-3:])  # and its legal end
+    assert not any(np.array_equal(w, sunk[2]) or np.array_equal(w, sunk[5]) for w in out)  # illegal waypoints cut
+    assert run.stats["replans"] == replans
+    if merge_gap == 1:  # not merged: the legal waypoints between the two runs stay too
+        assert any(np.array_equal(w, sunk[3]) for w in out) and any(np.array_equal(w, sunk[4]) for w in out)

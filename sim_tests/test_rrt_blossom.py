@@ -158,6 +158,7 @@ def test_that_rrt_blossom_marks_blocked_expansions_dead_and_keeps_searching(robo
     assert out.path is None and out.timed_out
     assert out.stats["nodes_start"] > 10
     assert out.stats["dead_start"] + out.stats["dormant_start"] > 0
+    assert out.stats["untried_start"] > 0 and out.stats["live_start"] > 0  # the frontier, and what was expanded
 
 
 def test_that_a_posture_of_another_robot_is_an_input_error(robot, flat, problems):
@@ -173,3 +174,61 @@ def test_that_every_public_name_of_the_planning_modules_resolves():
         m = importlib.import_module(f"robot_rise.planning.{mod}")
         for name in m.__all__:
             assert hasattr(m, name), f"robot_rise.planning.{mod}.{name}"
+
+
+def test_that_a_step_moves_each_part_by_its_own_step_with_the_orientation_on_the_slerp(robot):
+    """Eq. (4)-(5): root position by eps_p, orientation by eps_q along the slerp arc, joints by eps_e."""
+    from robot_rise.planning.space import quat_angle, quat_from_rotvec
+
+    space = PostureSpace.for_robot(robot)
+    a = np.concatenate([[0.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.0], np.zeros(space.n_joints)])
+    b = a.copy()
+    b[:3] += [0.3, 0.0, 0.0]
+    b[3:7] = quat_from_rotvec(np.array([0.0, 1.2, 0.0]))  # 1.2 rad about y: half-angle 0.6
+    b[7:] = np.clip(0.8, space.lower, space.upper)
+    eps_p, eps_q, eps_v = 0.01, 0.05, 0.1
+    x = space.step_toward(a, b, eps_p, eps_q, eps_v)
+    dp, dq, dv = space.part_distances(a, x)
+    assert dp == pytest.approx(eps_p) and dq == pytest.approx(eps_q) and dv == pytest.approx(eps_v)
+    # on the great circle from a to b: the two arcs add up to the whole
+    assert quat_angle(a[3:7], x[3:7]) + quat_angle(x[3:7], b[3:7]) == pytest.approx(quat_angle(a[3:7], b[3:7]), abs=1e-9)
+    assert np.all(x[7:] >= space.lower) and np.all(x[7:] <= space.upper)
+
+
+def test_that_a_part_that_reached_the_sample_stays_there_while_the_others_are_planned(robot):
+    """The unsynchronised-termination rule (000 section 4.2.1): orientation done, joints still moving."""
+    from robot_rise.planning.space import quat_from_rotvec
+
+    space = PostureSpace.for_robot(robot)
+    a = np.concatenate([[0.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.0], np.zeros(space.n_joints)])
+    b = a.copy()
+    b[3:7] = quat_from_rotvec(np.array([0.0, 0.0, 0.02]))  # within one orientation step
+    b[7:] = np.clip(0.8, space.lower, space.upper)
+    x = space.step_toward(a, b, 0.01, 0.05, 0.1)
+    np.testing.assert_array_equal(x[3:7], b[3:7])  # landed exactly on the sample's orientation
+    np.testing.assert_array_equal(x[:3], b[:3])
+    y = space.step_toward(x, b, 0.01, 0.05, 0.1)
+    np.testing.assert_array_equal(y[3:7], b[3:7])  # and stays fixed while the joints go on
+    assert space.part_distances(x, y)[2] == pytest.approx(0.1)
+
+
+def test_that_blocked_branches_recede_dead_or_dormant_up_the_tree():
+    """Fig. 4 recession: children closed with nothing live make their parent dead (all collided) or dormant (regressed)."""
+    from robot_rise.planning.rrt_blossom import EdgeState, _Tree
+
+    tr = _Tree(np.zeros(3), 10)
+    a = tr.add(np.ones(3), 0)
+    b = tr.add(2 * np.ones(3), a)
+    c = tr.add(3 * np.ones(3), a)
+    assert tr.state[b] == EdgeState.UNTRIED and tr.candidate[b]
+    tr.expansions[[a, b, c]] = 4
+    tr.dead_hits[b] = 3  # every child of b collided
+    tr.close(b, 4)
+    assert tr.state[b] == EdgeState.DEAD and not tr.candidate[b]
+    assert tr.state[a] == EdgeState.UNTRIED  # c may still grow: a is not blocked
+    tr.candidate[a] = False
+    tr.dormant_hits[c] = 1  # one of c's children regressed
+    tr.close(c, 4)
+    assert tr.state[c] == EdgeState.DORMANT
+    assert tr.state[a] == EdgeState.DORMANT  # nothing live below a, one branch only regressed
+    assert tr.state[0] == EdgeState.LIVE  # the root is still a candidate

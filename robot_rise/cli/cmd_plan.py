@@ -7,7 +7,7 @@ import sys
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
 from robot_rise.errors import RobotRiseError
-from robot_rise.planning.problem import PlanningProblem
+from robot_rise.planning.problem import PlanningProblem, select_goal
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import read_posture
 from robot_rise.trajectory import write_trajectory
@@ -42,17 +42,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _select_goal(start, checker: ValidityChecker):  # noqa: ANN001, ANN202 - thin CLI glue
-    """The nearest library frame (paper 000 section 4.1), placed where the robot lies."""
-    from robot_rise.rise import RiseContext, connecting_posture, connection_candidates
-
-    robot = checker.robot
-    ctx = RiseContext.build(robot, checker.scene)
-    conn = connection_candidates(ctx.library, robot, start, 1, index=ctx.index, tree=ctx.tree)[0]
-    print(f"connecting posture: {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})", file=sys.stderr)
-    return connecting_posture(ctx.library, robot, conn, start, checker)
-
-
 def _planner(name: str):  # noqa: ANN202
     if name == "energy":
         from robot_rise.planning.energy import EnergyPlanner
@@ -69,8 +58,15 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
     checker = ValidityChecker(robot, args.scene)
     start = read_posture(args.start, robot)
-    goal = read_posture(args.goal, robot) if args.goal else _select_goal(start, checker)
     key = read_posture(args.key, robot) if args.key else None
+    if args.goal:
+        goal = read_posture(args.goal, robot)
+    else:  # the library's connecting posture (nearest the key posture when one is given)
+        from robot_rise.rise import RiseContext
+
+        sel = select_goal(RiseContext.build(robot, args.scene), start, key)
+        goal, key = sel.goal, sel.key
+        print(f"connecting posture: {sel.source}" + ("" if key is not None or not args.key else " (the key posture itself)"), file=sys.stderr)
     problem = PlanningProblem(start, goal, checker, key=key, budget_s=args.budget, seed=args.seed)
     out = plan_trajectory(problem, planner=_planner(args.planner), smooth=not args.no_smooth)
     res = out.result

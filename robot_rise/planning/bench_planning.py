@@ -1,19 +1,28 @@
-"""Benchmark: our RRT-blossom against OMPL's RRT-Connect and PRM on the same problems.
+"""Benchmark: our RRT-blossom against OMPL's RRT-Connect and PRM on the same problems (issue 5).
 
 Same validity checker (robot_rise.validity), same edge checking (our MotionValidator at
 EDGE_RESOLUTION_M, installed into OMPL as its MotionValidator), same smoothing
-(robot_rise.planning.smoothing) and the same problems: the paper 000 section 5 protocol of 60
-settled lying postures on flat ground (20 supine, 20 prone, 10 left + 10 right) to their
-connecting postures, plus the beam, low-bed and table scenes (several seeds each). Reported
-per planner and problem set: success rate, median and 95th-percentile time (planning +
-smoothing), path length in the posture metric, minimum clearance.
+(robot_rise.planning.smoothing) and the same problems, read from the frozen problem set
+``configs/bench/planning_problems.json`` (robot_rise.planning.bench_problems):
+
+- flat60: the paper 000 section 5 protocol, 60 settled lying postures on flat ground (seed 1:
+  20 supine, 20 prone, 10 left + 10 right) to the connecting posture ``robot-rise rise``
+  selects for each from the motion library; one planner seed (``--seed``) per problem;
+- beam, low_bed, table: each scene's lying posture to its library connecting posture and to the
+  crouch beyond the obstacle, ``--obstacle-seeds`` planner seeds each.
+
+Reported per planner and problem set: success rate, median and 95th-percentile time (planning
++ smoothing, wall clock), path length in the posture metric (of the smoothed path), minimum
+clearance (smallest signed distance over the smoothed path).
 
 Run::
 
     .venv/bin/python -m robot_rise.planning.bench_planning --seed 1 --budget 10 --out out/bench_planning.json
 
-OMPL (the ``ompl`` PyPI package) is a bench-only dependency; without it only ours runs. The OMPL
-adapter lives in robot_rise/planning/ompl_adapter.py (shared with bench_energy.py).
+``--regenerate`` samples and selects the problems again (the library may have changed) and
+overwrites ``--problems``. OMPL (the ``ompl`` PyPI package, ``pip install -e '.[bench]'``) is a
+bench-only dependency; without it only ours runs. The OMPL adapter lives in
+robot_rise/planning/ompl_adapter.py (shared with bench_energy.py).
 """
 
 from __future__ import annotations
@@ -23,12 +32,14 @@ import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
-from robot_rise.model import Robot, load_robot
-from robot_rise.planning.bench_problems import BenchProblem, lying_problems, obstacle_problems
+from robot_rise.fileio import write_text_atomic
+from robot_rise.model import load_robot
+from robot_rise.planning.bench_problems import FrozenProblem, build_problem_set, library_digest, load_problem_set, save_problem_set
 from robot_rise.planning.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench_energy)
 from robot_rise.planning.problem import PlanningProblem, PlanResult
 from robot_rise.planning.refine import RRTBlossomPlanner
@@ -36,55 +47,75 @@ from robot_rise.planning.smoothing import smooth_path
 from robot_rise.planning.to_trajectory import path_length, path_min_clearance
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["OmplPlanner", "run_benchmark", "main"]
+__all__ = ["OmplPlanner", "BenchRow", "run_one", "run_benchmark", "summarize", "main"]
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class _Row:
+class BenchRow:
+    """One planner run on one problem.
+
+    Attributes:
+        seconds: planning + smoothing wall clock [s] (planning alone when unsolved).
+        plan_s: planning alone [s].
+        length: smoothed path length, paper 000 eq. (1) metric (NaN when unsolved).
+        clearance_m: smallest signed distance over the smoothed path [m] (NaN when unsolved).
+        reason: the planner's failure reason (empty when solved).
+    """
+
     planner: str
     problem: str
     pset: str
     seed: int
     solved: bool
     seconds: float
+    plan_s: float
     length: float
     clearance_m: float
+    status: str
     reason: str
 
 
-def _run_one(planner: Callable[[PlanningProblem], PlanResult], name: str, prob: BenchProblem, pset: str, checker: ValidityChecker, seed: int, budget: float) -> _Row:
+def run_one(planner: Callable[[PlanningProblem], PlanResult], name: str, prob: FrozenProblem, checker: ValidityChecker, seed: int, budget: float) -> BenchRow:
+    """Plan, smooth (re-verified) and measure one problem."""
     t0 = time.monotonic()
     res = planner(PlanningProblem(prob.start, prob.goal, checker, budget_s=budget, seed=seed))
+    t1 = time.monotonic()
     if not res.solved or res.path is None:
-        return _Row(name, prob.name, pset, seed, False, time.monotonic() - t0, float("nan"), float("nan"), res.reason[:200])
+        return BenchRow(name, prob.name, prob.pset, seed, False, t1 - t0, t1 - t0, float("nan"), float("nan"), res.status.value, res.reason[:300])
     sm = smooth_path(res.path, checker, seed=seed)
     dt = time.monotonic() - t0
     clear = path_min_clearance(sm, checker, stride=4)
-    return _Row(name, prob.name, pset, seed, True, dt, path_length(sm, checker), min(clear.values()), "")
+    return BenchRow(name, prob.name, prob.pset, seed, True, dt, t1 - t0, path_length(sm, checker), min(clear.values()), res.status.value, "")
 
 
-def run_benchmark(robot: Robot, *, seed: int, budget_s: float, planners: dict[str, Callable[[PlanningProblem], PlanResult]], obstacle_seeds: int = 5, n_flat: int = 20) -> list[_Row]:
-    """Run every planner on the flat-ground 60 and the obstacle scenes; rows per run."""
-    flat = lying_problems(robot, n_flat, seed, per_kind={"left": n_flat // 2, "right": n_flat - n_flat // 2})
-    obst = obstacle_problems(robot)
+def run_benchmark(
+    problems: list[FrozenProblem],
+    *,
+    seed: int,
+    budget_s: float,
+    planners: dict[str, Callable[[PlanningProblem], PlanResult]],
+    obstacle_seeds: int = 5,
+    on_row: Callable[[BenchRow], None] | None = None,
+) -> list[BenchRow]:
+    """Every planner on every problem: flat60 problems once with ``seed``, the others with seeds 0..obstacle_seeds-1."""
+    robot = load_robot()
     checkers: dict[str, ValidityChecker] = {}
-    rows: list[_Row] = []
+    rows: list[BenchRow] = []
     for name, planner in planners.items():
-        for prob in flat:
+        for prob in problems:
             c = checkers.setdefault(prob.scene, ValidityChecker(robot, prob.scene))
-            rows.append(_run_one(planner, name, prob, "flat60", c, seed, budget_s))
-            log.info("%s %s %s %.2fs", name, prob.name, rows[-1].solved, rows[-1].seconds)
-        for prob in obst:
-            c = checkers.setdefault(prob.scene, ValidityChecker(robot, prob.scene))
-            for s in range(obstacle_seeds):
-                rows.append(_run_one(planner, name, prob, prob.scene, c, s, budget_s))
-                log.info("%s %s seed %d %s %.2fs", name, prob.name, s, rows[-1].solved, rows[-1].seconds)
+            for s in ([seed] if prob.pset == "flat60" else range(obstacle_seeds)):
+                row = run_one(planner, name, prob, c, s, budget_s)
+                rows.append(row)
+                log.info("%s %s seed %d: %s %.2f s %s", name, prob.name, s, "solved" if row.solved else "FAILED", row.seconds, row.reason)
+                if on_row is not None:
+                    on_row(row)
     return rows
 
 
-def summarize(rows: list[_Row]) -> list[dict[str, object]]:
+def summarize(rows: list[BenchRow]) -> list[dict[str, object]]:
     out = []
     for planner in dict.fromkeys(r.planner for r in rows):
         for pset in dict.fromkeys(r.pset for r in rows):
@@ -92,7 +123,7 @@ def summarize(rows: list[_Row]) -> list[dict[str, object]]:
             ok = [r for r in rs if r.solved]
             t = np.array([r.seconds for r in ok]) if ok else np.array([np.nan])
             out.append({
-                "planner": planner, "set": pset, "runs": len(rs), "success": len(ok) / max(1, len(rs)),
+                "planner": planner, "set": pset, "runs": len(rs), "solved": len(ok), "success": len(ok) / max(1, len(rs)),
                 "median_s": float(np.median(t)), "p95_s": float(np.percentile(t, 95)),
                 "median_length": float(np.median([r.length for r in ok])) if ok else float("nan"),
                 "min_clearance_m": float(min(r.clearance_m for r in ok)) if ok else float("nan"),
@@ -100,17 +131,39 @@ def summarize(rows: list[_Row]) -> list[dict[str, object]]:
     return out
 
 
+def format_table(table: list[dict[str, object]]) -> str:
+    """The BENCHMARKS.md table (markdown)."""
+    lines = ["| planner | set | runs | success | median s | p95 s | median length | min clearance mm |", "|---|---|---|---|---|---|---|---|"]
+    for t in table:
+        lines.append(
+            f"| {t['planner']} | {t['set']} | {t['runs']} | {t['solved']}/{t['runs']} ({100 * float(t['success']):.0f}%) | {float(t['median_s']):.2f} | "  # type: ignore[arg-type]
+            f"{float(t['p95_s']):.2f} | {float(t['median_length']):.2f} | {1000 * float(t['min_clearance_m']):.1f} |"  # type: ignore[arg-type]
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--budget", type=float, default=10.0)
-    ap.add_argument("--n-flat", type=int, default=20, help="postures per supine/prone (lateral split in two)")
-    ap.add_argument("--obstacle-seeds", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=1, help="planner seed of the flat60 problems")
+    ap.add_argument("--budget", type=float, default=10.0, help="planning budget per run [s]")
+    ap.add_argument("--obstacle-seeds", type=int, default=5, help="planner seeds per beam/bed/table problem")
     ap.add_argument("--planners", default="rrt_blossom,ompl_rrtconnect,ompl_prm")
+    ap.add_argument("--sets", default="flat60,beam,low_bed,table", help="problem sets to run")
+    ap.add_argument("--only", default="", help="comma-separated problem names (e.g. left/4) to run alone")
+    ap.add_argument("--problems", default=None, help="frozen problem file (default configs/bench/planning_problems.json)")
+    ap.add_argument("--regenerate", action="store_true", help="sample and select the problems again and overwrite --problems")
+    ap.add_argument("--sample-seed", type=int, default=1, help="lying-posture sampling seed for --regenerate")
     ap.add_argument("--out", default="out/bench_planning.json")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     robot = load_robot()
+    if args.regenerate:
+        path = save_problem_set(build_problem_set(robot, seed=args.sample_seed), robot, args.problems, seed=args.sample_seed)
+        log.info("wrote %s", path)
+    problems = load_problem_set(robot, args.problems)
+    sets = set(args.sets.split(","))
+    only = set(filter(None, args.only.split(",")))
+    problems = [p for p in problems if p.pset in sets and (not only or p.name in only)]
     avail: dict[str, Callable[[PlanningProblem], PlanResult]] = {"rrt_blossom": RRTBlossomPlanner()}
     try:
         import ompl  # noqa: F401
@@ -118,18 +171,24 @@ def main(argv: list[str] | None = None) -> int:
         avail["ompl_rrtconnect"] = OmplPlanner("RRTConnect")
         avail["ompl_prm"] = OmplPlanner("PRM")
     except ImportError:
-        log.warning("ompl is not installed: only rrt_blossom runs")
+        log.warning("ompl is not installed (pip install -e '.[bench]'): only rrt_blossom runs")
     planners = {k: avail[k] for k in args.planners.split(",") if k in avail}
-    rows = run_benchmark(robot, seed=args.seed, budget_s=args.budget, planners=planners, obstacle_seeds=args.obstacle_seeds, n_flat=args.n_flat)
-    table = summarize(rows)
-    from pathlib import Path
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    done: list[BenchRow] = []
+    meta = {"args": vars(args), "library_digest_now": library_digest(robot)}
 
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps({"args": vars(args), "summary": table, "runs": [r.__dict__ for r in rows]}, indent=1, default=str))
-    print("| planner | set | runs | success | median s | p95 s | median length | min clearance mm |")
-    print("|---|---|---|---|---|---|---|---|")
-    for t in table:
-        print(f"| {t['planner']} | {t['set']} | {t['runs']} | {100 * t['success']:.0f}% | {t['median_s']:.2f} | {t['p95_s']:.2f} | {t['median_length']:.2f} | {1000 * t['min_clearance_m']:.1f} |")
+    def save(row: BenchRow) -> None:
+        done.append(row)
+        write_text_atomic(out, json.dumps({**meta, "runs": [asdict(r) for r in done]}, indent=1, default=str))
+
+    rows = run_benchmark(problems, seed=args.seed, budget_s=args.budget, planners=planners, obstacle_seeds=args.obstacle_seeds, on_row=save)
+    table = summarize(rows)
+    write_text_atomic(out, json.dumps({**meta, "summary": table, "runs": [asdict(r) for r in rows]}, indent=1, default=str))
+    print(format_table(table))  # the command's output is the table
+    for r in rows:
+        if not r.solved:
+            print(f"failed: {r.planner} {r.problem} seed {r.seed}: {r.reason}")
     return 0
 
 

@@ -1,5 +1,18 @@
 """Planning problems for tests and benchmarks: lying postures to connecting postures.
 
+The issue-5 benchmark runs on a FROZEN problem set (``configs/bench/planning_problems.json``,
+format ``robot-rise/planning-problems@1``, made by :func:`build_problem_set`): the 60 settled
+lying postures of paper 000's protocol (seed 1: 20 supine, 20 prone, 10 left, 10 right) to the
+connecting posture ``robot-rise rise`` selects for each (library selection, below), and the
+beam, low-bed and table scenes, each with two problems: its lying posture to the library
+connecting posture selected in that scene, and to the crouch beyond the obstacle. The motion
+library changes; the frozen file keeps the benchmark's problems fixed (its digest is stored).
+
+Library selection (what ``robot_rise.rise`` does, :func:`library_connecting_posture`): the
+nearest frames of the ``DEFAULT_CANDIDATES`` nearest motions among the library's lying frames
+(``RiseContext``, K-means tree, paper 000 eq. 1), each placed where the robot lies
+(``connecting_posture``); the first whose placement is legal is the goal.
+
 The lying postures come from :func:`robot_rise.sampling.sample_lying_postures` (settled in
 MuJoCo, fixed seeds: the paper 000 section 5 protocol of 20 supine, 20 prone, 20 lateral).
 Connecting postures come from the motion library when ``robot_rise.library`` offers a selection
@@ -11,15 +24,23 @@ section 4.1: "the global position and facing direction ... are roughly aligned")
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from robot_rise.model import Robot
 from robot_rise.placement import align_to_start
-from robot_rise.posture import Posture, quat_multiply
+from robot_rise.fileio import write_text_atomic
+from robot_rise.paths import configs_dir
+from robot_rise.planning.problem import select_goal
+from robot_rise.posture import Posture, posture_from_dict, posture_to_dict, quat_multiply
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
@@ -30,6 +51,15 @@ __all__ = [
     "lying_problems",
     "obstacle_problems",
     "CROUCH_LEG_SCALE",
+    "PROBLEMS_FORMAT",
+    "DEFAULT_PROBLEMS_FILE",
+    "FLAT60_PER_KIND",
+    "FrozenProblem",
+    "library_connecting_posture",
+    "library_digest",
+    "build_problem_set",
+    "save_problem_set",
+    "load_problem_set",
 ]
 
 log = logging.getLogger(__name__)
@@ -65,6 +95,11 @@ def connecting_posture_for(start: Posture, checker: ValidityChecker) -> Posture:
         except Exception as e:  # library under construction: fall back, say so
             log.warning("library selection failed (%s); using the fallback crouch", e)
     return align_to_start(fallback_connecting_posture(checker.robot), start, checker)
+
+
+PROBLEMS_FORMAT = "robot-rise/planning-problems@1"
+DEFAULT_PROBLEMS_FILE = "bench/planning_problems.json"  # under configs_dir()
+FLAT60_PER_KIND = {"supine": 20, "prone": 20, "left": 10, "right": 10}  # paper 000 section 5 protocol
 
 
 @dataclass(frozen=True)
@@ -146,3 +181,111 @@ def _lying_posture(robot: Robot, checker: ValidityChecker, kind: str, xy: tuple[
         else:
             lo = mid
     return p.with_root(np.array([xy[0], xy[1], hi + checker.contact_tolerance_m]))
+
+
+# --- the frozen issue-5 problem set --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FrozenProblem:
+    """One problem of the frozen benchmark set.
+
+    Attributes:
+        name: unique, e.g. ``supine/3`` or ``beam/library``.
+        pset: problem set (``flat60``, ``beam``, ``low_bed``, ``table``).
+        scene: scene name for ``ValidityChecker``.
+        start, goal: postures.
+        goal_source: where the goal came from: ``library motion@frame (candidate r)`` or ``crouch``.
+    """
+
+    name: str
+    pset: str
+    scene: str
+    start: Posture
+    goal: Posture
+    goal_source: str
+
+
+def library_digest(robot: Robot) -> str:
+    """SHA-256 (first 16 hex digits) of the robot's motion library files."""
+    from robot_rise.library import default_library_dir
+
+    h = hashlib.sha256()
+    for f in sorted(Path(default_library_dir(robot.library)).glob("*.json")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def library_connecting_posture(ctx: Any, start: Posture) -> tuple[Posture, str]:
+    """The connecting posture ``rise`` plans to first (``problem.select_goal``): (goal, ``"library motion@frame (candidate r)"``)."""
+    sel = select_goal(ctx, start)
+    return sel.goal, f"library {sel.source}"
+
+
+def build_problem_set(robot: Robot, *, seed: int = 1, per_kind: dict[str, int] | None = None) -> list[FrozenProblem]:
+    """Sample and select the issue-5 problems (minutes: settling the lying postures in MuJoCo).
+
+    Args:
+        seed: sampling seed of the lying postures (each kind uses it; paper protocol: 1).
+        per_kind: lying postures per kind (default FLAT60_PER_KIND).
+    """
+    from robot_rise.rise import RiseContext
+    from robot_rise.sampling import sample_lying_postures
+
+    out: list[FrozenProblem] = []
+    ctx = RiseContext.build(robot, "flat")
+    for kind, n in (per_kind or FLAT60_PER_KIND).items():
+        for i, start in enumerate(sample_lying_postures(robot, kind, n, seed).postures):  # type: ignore[arg-type]
+            goal, source = library_connecting_posture(ctx, start)
+            out.append(FrozenProblem(f"{kind}/{i}", "flat60", "flat", start, goal, source))
+            log.info("flat60 %s/%d -> %s", kind, i, source)
+    for crouch in obstacle_problems(robot):
+        sctx = RiseContext.build(robot, crouch.scene, library=ctx.library)
+        goal, source = library_connecting_posture(sctx, crouch.start)
+        out.append(FrozenProblem(f"{crouch.scene}/library", crouch.scene, crouch.scene, crouch.start, goal, source))
+        out.append(FrozenProblem(f"{crouch.scene}/crouch", crouch.scene, crouch.scene, crouch.start, crouch.goal, "crouch"))
+    return out
+
+
+def _resolve(path: str | os.PathLike[str] | None) -> Path:
+    return configs_dir() / DEFAULT_PROBLEMS_FILE if path is None else Path(path)
+
+
+def save_problem_set(problems: list[FrozenProblem], robot: Robot, path: str | os.PathLike[str] | None = None, *, seed: int = 1) -> Path:
+    """Write the problems as ``robot-rise/planning-problems@1`` JSON (atomically)."""
+    p = _resolve(path)
+    doc = {
+        "format": PROBLEMS_FORMAT,
+        "robot": robot.name,
+        "seed": seed,
+        "library_digest": library_digest(robot),
+        "note": "issue-5 benchmark problems, frozen; regenerate with bench_planning --regenerate",
+        "problems": [
+            {"name": q.name, "set": q.pset, "scene": q.scene, "goal_source": q.goal_source,
+             "start": posture_to_dict(q.start), "goal": posture_to_dict(q.goal)}
+            for q in problems
+        ],
+    }
+    p.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(p, json.dumps(doc, indent=1) + "\n")
+    return p
+
+
+def load_problem_set(robot: Robot, path: str | os.PathLike[str] | None = None) -> list[FrozenProblem]:
+    """Read a frozen problem set (default DEFAULT_PROBLEMS_FILE).
+
+    Raises:
+        ValueError: wrong ``format`` or robot.
+    """
+    p = _resolve(path)
+    doc = json.loads(p.read_text())
+    if doc.get("format") != PROBLEMS_FORMAT:
+        raise ValueError(f"{p}: format is {doc.get('format')!r}, expected {PROBLEMS_FORMAT!r}")
+    if doc.get("robot") != robot.name:
+        raise ValueError(f"{p}: problems for robot {doc.get('robot')!r}, not {robot.name!r}")
+    return [
+        FrozenProblem(d["name"], d["set"], d["scene"], posture_from_dict(d["start"], robot, where=f"{p}: {d['name']} start"),
+                      posture_from_dict(d["goal"], robot, where=f"{p}: {d['name']} goal"), d["goal_source"])
+        for d in doc["problems"]
+    ]

@@ -7,11 +7,12 @@ toward the sample with eq. (4)-(5) (the main child) and blossoms further childre
 MotionValidator) or it regresses (a node of the tree is nearer to it than its parent).
 
 Edge viability (Kalisiak & van de Panne 2006, paper 000 Fig. 4): each node carries the state of
-the edge into it: untried (not yet expanded), live, dormant (its expansions were all regressed)
-or dead (they all collided). Only live nodes are nearest-neighbour candidates. A node whose
-expansion yields nothing becomes dormant or dead, and a node whose children are all non-live
-and that has used its expansions follows them: blocked regions recede instead of trapping the
-search.
+the edge into it: untried (added, never expanded), live (expanded, and it or a child may still
+grow), dormant (everything tried from it regressed, or led only to dormant nodes) or dead
+(everything collided, or led only to dead nodes). Only untried and live nodes that have
+expansions left are nearest-neighbour candidates. A node that has used its expansions and has
+no untried or live child becomes dormant or dead, and its parent is asked the same question:
+blocked regions recede instead of trapping the search.
 
 Choices of ours, each a knob of :class:`BlossomConfig`:
 - root position is a third part of the state stepped by its own eps_p, with the same
@@ -135,7 +136,7 @@ class _Tree:
         i = self.n
         self.x[i] = x
         self.parent[i] = parent
-        self.state[i] = EdgeState.LIVE
+        self.state[i] = EdgeState.UNTRIED
         self.candidate[i] = True
         self.children.append([])
         self.children[parent].append(i)
@@ -156,7 +157,7 @@ class _Tree:
         self.candidate[i] = False
         while i >= 0:
             kids = self.children[i]
-            if self.candidate[i] or any(self.state[k] == EdgeState.LIVE for k in kids):
+            if self.candidate[i] or any(self.state[k] in (EdgeState.UNTRIED, EdgeState.LIVE) for k in kids):
                 return
             if i > 0 and self.expansions[i] < max_expansions:
                 return
@@ -204,6 +205,8 @@ def rrt_blossom(
             out[f"nodes_{name}"] = tr.n
             out[f"dormant_{name}"] = int(np.sum(st == EdgeState.DORMANT))
             out[f"dead_{name}"] = int(np.sum(st == EdgeState.DEAD))
+            out[f"untried_{name}"] = int(np.sum(st == EdgeState.UNTRIED))
+            out[f"live_{name}"] = int(np.sum(st == EdgeState.LIVE))
         return out
 
     if validator.segment_valid(a, b):  # the straight motion is the trivial tree connection
@@ -239,6 +242,8 @@ def rrt_blossom(
         near = int(cand[np.argmin(d)])
         xn = tree.x[near]
         tree.expansions[near] += 1
+        if tree.state[near] == EdgeState.UNTRIED:
+            tree.state[near] = EdgeState.LIVE  # tried: it stays live until close() says otherwise
         main = space.step_toward(xn, target, cfg.step_position_m, cfg.step_orientation_rad, cfg.step_joint_rad)
         kids = [main]
         moving_v = np.abs(main[7:] - xn[7:]) > 0  # the joint part is still being planned

@@ -131,6 +131,7 @@ def smooth_path(
     *,
     config: SmoothingConfig = SmoothingConfig(),
     seed: int = 0,
+    through: tuple[int, ...] = (),
 ) -> PostureSequence:
     """Shortcut and B-spline-smooth a legal posture sequence; the result is legal and dense.
 
@@ -139,6 +140,8 @@ def smooth_path(
         checker: the strict validity checker of the scene.
         config: knobs.
         seed: shortcut randomness.
+        through: indices of interior waypoints the result must pass exactly (a key posture):
+            the pieces between them are smoothed separately, each clamped at its ends.
 
     Returns:
         a posture sequence with the same first and last posture, legal at
@@ -148,8 +151,13 @@ def smooth_path(
     space = PostureSpace.for_robot(checker.robot)
     if tuple(seq.joint_names) != space.joint_names:
         raise ValueError("smooth_path: the sequence's joint order differs from the checker's robot")
-    validator = MotionValidator(checker, space, config.resolution_m)
     states = _states(seq)
+    cuts = sorted({int(i) for i in through if 0 < int(i) < len(states) - 1})
+    if cuts:
+        bounds = [0, *cuts, len(states) - 1]
+        pieces = [smooth_path(_sequence(seq, states[i : j + 1]), checker, config=config, seed=seed) for i, j in zip(bounds[:-1], bounds[1:])]
+        return _sequence(seq, np.concatenate([_states(p) if k == 0 else _states(p)[1:] for k, p in enumerate(pieces)]))
+    validator = MotionValidator(checker, space, config.resolution_m)
     t0 = time.monotonic()
     rng = np.random.default_rng(seed)
     ctrl = shortcut(states, validator, rng, config.shortcut_attempts, t0 + config.shortcut_budget_s)

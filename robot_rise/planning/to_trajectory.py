@@ -100,7 +100,12 @@ def plan_trajectory(
     t1 = time.monotonic()
     if not result.solved or result.path is None:
         return PlannedTrajectory(result, seconds={"plan": t1 - t0})
-    smoothed = smooth_path(result.path, checker, config=smoothing, seed=problem.seed) if smooth else result.path
+    through: tuple[int, ...] = ()
+    if problem.key is not None:  # the key posture is a waypoint of the plan: the smoothed path keeps it exactly
+        space = PostureSpace.for_robot(checker.robot)
+        x = np.concatenate([result.path.root_pos, result.path.root_quat_wxyz, result.path.joints], axis=1)
+        through = (int(np.argmin(space.distance(x, space.state(problem.key)))),)
+    smoothed = smooth_path(result.path, checker, config=smoothing, seed=problem.seed, through=through) if smooth else result.path
     t2 = time.monotonic()
     timed = time_parameterize(smoothed, checker.robot, limits=limits)
     t3 = time.monotonic()
