@@ -9,28 +9,41 @@ uses the ``dxlsim://`` URL handler instead (emulator work then happens inside th
 
 One cycle = sync write of goal positions (deferred, 114 B) + Fast Sync Read of the 14-byte
 indirect feedback block (34 B request + 368 B reply), handed to the kernel in one ``write()``.
+
+Two rates are measured: *sequential* (write, wait, decode, next) and *pipelined* (the next
+cycle's goal frame is built while the reply is on the wire and the next request leaves as soon
+as the reply is in, before the reply is decoded; see
+:meth:`drivers.group.ServoGroup.request_fast_feedback`). Both are compared with the wire limit.
+
+The emulator stands for servo hardware, which answers on time whatever the host does; by
+default it runs under ``SCHED_FIFO`` (:data:`EMULATOR_RT_PRIORITY`) when the privilege exists,
+so that its own wake-up delays on a busy machine are not charged to the host. The host keeps
+its normal scheduling unless ``realtime_priority`` is given. The result names both policies.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import argparse
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from drivers.clock import realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
-from drivers.group import FEEDBACK_SIZE
+from drivers.group import FEEDBACK_SIZE, ServoGroup
 from drivers.protocol import wire_time_s
 from drivers.safety import SafetyLimits
 from drivers.servo_map import BusSpec, ServoMap, ServoSpec
 from drivers.session import Connection, connect, mock_url_for
 from drivers.startup import engage, preflight
 
-__all__ = ["BusBenchResult", "bench_bus", "host_code_cpu", "wire_limit_hz", "format_result", "main"]
+__all__ = ["EMULATOR_RT_PRIORITY", "BusBenchResult", "bench_bus", "pipelined_cycles", "host_code_cpu",
+           "wire_limit_hz", "format_result", "main"]
 
 TRANSPORTS = ("pty", "inprocess")
+EMULATOR_RT_PRIORITY = 20  # SCHED_FIFO priority of the emulator process (servo hardware is punctual)
 
 
 @dataclass(frozen=True)
@@ -68,10 +81,20 @@ class BusBenchResult:
     jitter_run_completed: bool | None = None
     host_code_cpu_per_cycle_s: float | None = None
     scheduling: str = "normal scheduling"
+    pipelined_rate_hz: float | None = None
+    pipelined_cpu_per_cycle_s: float | None = None
+    emulator_scheduling: str = "in-process"
+    executor_wait_cpu_per_cycle_s: float | None = None
 
     @property
     def ratio(self) -> float:
+        """Sequential cycle rate / wire limit."""
         return self.cycle_rate_hz / self.wire_limit_hz
+
+    @property
+    def pipelined_ratio(self) -> float | None:
+        """Pipelined cycle rate / wire limit."""
+        return None if self.pipelined_rate_hz is None else self.pipelined_rate_hz / self.wire_limit_hz
 
 
 def _map(n: int, baud: int) -> ServoMap:
@@ -86,34 +109,91 @@ def wire_limit_hz(n_servos: int, baud_rate: int) -> float:
     return 1.0 / wire_time_s(write_b + read_b, baud_rate)
 
 
-def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float,
-             emulator_cpu: bool) -> tuple[float, float, float | None, float | None, bool | None]:
+@dataclass(frozen=True)
+class _Measured:
+    rate_hz: float
+    cpu_s: float
+    pipelined_rate_hz: float
+    pipelined_cpu_s: float
+    jitter_p99_s: float | None
+    executor_cpu_s: float | None
+    executor_wait_cpu_s: float | None
+    completed: bool | None
+
+
+def _sequential(group: ServoGroup, q: np.ndarray, cycles: int) -> None:
+    for _ in range(cycles):
+        group.write_goals(q, defer=True)
+        group.read_feedback()
+
+
+def pipelined_cycles(group: ServoGroup, q: np.ndarray, cycles: int) -> int:
+    """``cycles`` goal-write + feedback-read cycles, pipelined; returns the cycles whose
+    feedback was complete.
+
+    Order on the wire is unchanged (request k, reply k, request k+1, ...): only the host's work
+    moves. Goals for cycle k+1 are encoded while reply k is on the wire, request k+1 leaves
+    as soon as reply k is in, and reply k is decoded while request k+1 is on the wire. A failed
+    fast read falls back to :meth:`ServoGroup.read_feedback` (which also re-sends the goals).
+    """
+    complete = 0
+    if not group.pipelinable:
+        for _ in range(cycles):
+            group.write_goals(q, defer=True)
+            complete += int(group.read_feedback().valid.all())
+        return complete
+    group.write_goals(q, defer=True)
+    group.request_fast_feedback()
+    for k in range(cycles):
+        last = k + 1 == cycles
+        if not last:
+            group.write_goals(q, defer=True)  # queued: leaves with the next request
+        raw = group.collect_fast_feedback_raw()
+        if raw is not None and not last:
+            group.request_fast_feedback()
+        fb = group.decode_fast_feedback(raw)
+        if fb is None:  # fall back for this cycle, then restart the pipeline
+            fb = group.read_feedback()
+            if not last and group.pipelinable:
+                group.write_goals(q, defer=True)
+                group.request_fast_feedback()
+            elif not last:
+                return complete + int(fb.valid.all()) + pipelined_cycles(group, q, cycles - k - 1)
+        complete += int(fb.valid.all())
+    return complete
+
+
+def _timed(fn: Callable[[], object], cycles: int, port: object, emulator_cpu: bool) -> tuple[float, float]:
+    t0 = time.perf_counter()
+    c0 = time.thread_time()
+    e0 = getattr(port, "emulator_time_s", 0.0) if emulator_cpu else 0.0
+    fn()
+    wall = time.perf_counter() - t0
+    cpu = time.thread_time() - c0
+    if emulator_cpu:
+        cpu -= getattr(port, "emulator_time_s", 0.0) - e0
+    return cycles / wall, cpu / cycles
+
+
+def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emulator_cpu: bool) -> _Measured:
     group = conn.group
     preflight(group)
     engage(group, watchdog_s=None)
     q = np.zeros(n_servos)
     port = group.bus.port
-    for _ in range(20):  # warm-up
-        group.write_goals(q, defer=True)
-        group.read_feedback()
-    t0 = time.perf_counter()
-    c0 = time.thread_time()
-    e0 = getattr(port, "emulator_time_s", 0.0) if emulator_cpu else 0.0
-    for _ in range(cycles):
-        group.write_goals(q, defer=True)
-        group.read_feedback()
-    wall = time.perf_counter() - t0
-    cpu = time.thread_time() - c0
-    if emulator_cpu:
-        cpu -= getattr(port, "emulator_time_s", 0.0) - e0
-    p99 = ex_cpu = None
+    _sequential(group, q, 20)  # warm-up
+    rate, cpu = _timed(lambda: _sequential(group, q, cycles), cycles, port, emulator_cpu)
+    pipelined_cycles(group, q, 20)
+    p_rate, p_cpu = _timed(lambda: pipelined_cycles(group, q, cycles), cycles, port, emulator_cpu)
+    p99 = ex_cpu = wait_cpu = None
     completed = None
     if jitter_s > 0:
         smap = group.map
         ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0))
         rep = ex.run(smap.joint_names, np.array([0.0, jitter_s]), np.zeros((2, n_servos)))
         p99, ex_cpu, completed = rep.stats.jitter_p99_s, rep.stats.cpu_mean_s, rep.completed
-    return cycles / wall, cpu / cycles, p99, ex_cpu, completed
+        wait_cpu = rep.stats.wait_cpu_mean_s
+    return _Measured(rate, cpu, p_rate, p_cpu, p99, ex_cpu, wait_cpu, completed)
 
 
 class _InstantPort:
@@ -159,52 +239,61 @@ def host_code_cpu(n_servos: int = 20, *, cycles: int = 2000) -> float:
 
 
 def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s: float = 0.0,
-              transport: str = "pty", realtime_priority: int | None = None) -> BusBenchResult:
+              transport: str = "pty", realtime_priority: int | None = None,
+              emulator_rt_priority: int | None = EMULATOR_RT_PRIORITY) -> BusBenchResult:
     """Measure one baud rate (see the module docstring).
 
     Args:
         baud_rate: bus speed [bit/s] (1, 2, 3 or 4 Mbps).
-        cycles: back-to-back cycles timed.
+        cycles: back-to-back cycles timed (sequential, then pipelined).
         jitter_s: seconds of 100 Hz executor streaming for the jitter figure (0: skip).
         transport: ``"pty"`` or ``"inprocess"``.
-        realtime_priority: run host (and the emulator process it starts) under SCHED_FIFO.
+        realtime_priority: run the host under SCHED_FIFO at this priority (None: normal).
+        emulator_rt_priority: SCHED_FIFO priority of the pty emulator process when permitted
+            (None: the emulator inherits the host's scheduling).
     """
     if transport not in TRANSPORTS:
         raise ValueError(f"transport {transport!r} not in {TRANSPORTS}")
-    with realtime_scheduling(realtime_priority) as note:
-        result = _bench(baud_rate, n_servos, cycles, jitter_s, transport)
-    return dataclasses.replace(result, scheduling=note)
-
-
-def _bench(baud_rate: int, n_servos: int, cycles: int, jitter_s: float, transport: str) -> BusBenchResult:
     smap = _map(n_servos, baud_rate)
     if transport == "pty":
         from drivers.mockbus.pty_server import spawn_pty_server
 
-        with spawn_pty_server(smap.ids, baud_rate=baud_rate, wire_timing=True) as server:
-            with connect(smap, server.device) as conn:
-                rate, cpu, p99, ex_cpu, completed = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
+        with spawn_pty_server(smap.ids, baud_rate=baud_rate, wire_timing=True,
+                              rt_priority=emulator_rt_priority) as server:
+            emulator = server.scheduling
+            with realtime_scheduling(realtime_priority) as note, connect(smap, server.device) as conn:
+                m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
                 stats = conn.bus.stats
     else:
-        with connect(smap, mock_url_for(smap, wire_timing=True)) as conn:
-            rate, cpu, p99, ex_cpu, completed = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
+        emulator = "in-process"
+        with realtime_scheduling(realtime_priority) as note, \
+                connect(smap, mock_url_for(smap, wire_timing=True)) as conn:
+            m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
             stats = conn.bus.stats
-    return BusBenchResult(baud_rate, n_servos, transport, rate, wire_limit_hz(n_servos, baud_rate), cpu,
-                          p99, ex_cpu, stats.fast_read_failures, stats.timeouts, completed,
-                          host_code_cpu(n_servos))
+    return BusBenchResult(baud_rate, n_servos, transport, m.rate_hz, wire_limit_hz(n_servos, baud_rate), m.cpu_s,
+                          m.jitter_p99_s, m.executor_cpu_s, stats.fast_read_failures, stats.timeouts, m.completed,
+                          host_code_cpu(n_servos), note, m.pipelined_rate_hz, m.pipelined_cpu_s, emulator,
+                          m.executor_wait_cpu_s)
 
 
 def format_result(r: BusBenchResult) -> str:
     """One line of figures for the operator."""
-    line = (f"{r.baud_rate / 1e6:.0f} Mbps, {r.n_servos} servos ({r.transport}, {r.scheduling}): {r.cycle_rate_hz:.0f} Hz "
-            f"measured vs {r.wire_limit_hz:.0f} Hz wire limit (ratio {r.ratio:.2f}); "
-            f"host CPU {r.host_cpu_per_cycle_s * 1e3:.3f} ms/cycle")
+    line = (f"{r.baud_rate / 1e6:.0f} Mbps, {r.n_servos} servos ({r.transport}; host {r.scheduling}, "
+            f"emulator {r.emulator_scheduling}): wire limit {r.wire_limit_hz:.0f} Hz; "
+            f"sequential {r.cycle_rate_hz:.0f} Hz (ratio {r.ratio:.2f}, host CPU "
+            f"{r.host_cpu_per_cycle_s * 1e3:.3f} ms/cycle)")
+    if r.pipelined_rate_hz is not None and r.pipelined_cpu_per_cycle_s is not None:
+        line += (f"; pipelined {r.pipelined_rate_hz:.0f} Hz (ratio {r.pipelined_ratio:.2f}, host CPU "
+                 f"{r.pipelined_cpu_per_cycle_s * 1e3:.3f} ms/cycle)")
     if r.host_code_cpu_per_cycle_s is not None:
-        line += f" ({r.host_code_cpu_per_cycle_s * 1e3:.3f} ms of it our code, no I/O)"
+        line += f"; our code alone {r.host_code_cpu_per_cycle_s * 1e3:.3f} ms/cycle"
     if r.jitter_p99_at_100hz_s is not None:
         line += f"; jitter p99 at 100 Hz {r.jitter_p99_at_100hz_s * 1e3:.3f} ms"
     if r.executor_cpu_per_cycle_s is not None:
-        line += f" (executor CPU {r.executor_cpu_per_cycle_s * 1e3:.3f} ms/cycle)"
+        line += f" (executor CPU {r.executor_cpu_per_cycle_s * 1e3:.3f} ms/cycle"
+        if r.executor_wait_cpu_per_cycle_s is not None:
+            line += f", + {r.executor_wait_cpu_per_cycle_s * 1e3:.3f} ms spinning to the deadline"
+        line += ")"
     if r.jitter_run_completed is False:
         line += "; the 100 Hz run ABORTED (see the log)"
     if r.fast_read_failures or r.timeouts:
@@ -212,10 +301,22 @@ def format_result(r: BusBenchResult) -> str:
     return line
 
 
-def main() -> None:  # pragma: no cover - prints figures
-    for baud in (1_000_000, 4_000_000):
-        print(format_result(bench_bus(baud, jitter_s=3.0)))
+def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints figures
+    p = argparse.ArgumentParser(prog="python -m drivers.bench", description=__doc__.split("\n")[0])
+    p.add_argument("--baud", type=int, action="append", help="baud rate(s) [bit/s] (default 1 and 4 Mbps)")
+    p.add_argument("--cycles", type=int, default=500)
+    p.add_argument("--jitter-seconds", type=float, default=3.0)
+    p.add_argument("--transport", choices=TRANSPORTS, default="pty")
+    p.add_argument("--rt-priority", type=int, metavar="P", help="host under SCHED_FIFO priority P")
+    p.add_argument("--emulator-rt-priority", type=int, default=EMULATOR_RT_PRIORITY, metavar="P",
+                   help=f"pty emulator under SCHED_FIFO priority P (default {EMULATOR_RT_PRIORITY}; 0: normal)")
+    args = p.parse_args(argv)
+    for baud in args.baud or (1_000_000, 4_000_000):
+        print(format_result(bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds,
+                                      transport=args.transport, realtime_priority=args.rt_priority,
+                                      emulator_rt_priority=args.emulator_rt_priority or None)), flush=True)
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
-    main()
+    raise SystemExit(main())

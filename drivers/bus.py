@@ -134,6 +134,10 @@ class DynamixelBus:
         self._last_tx_bytes = 0  # bytes of the last write() (replies queue behind them)
         self._tx_queue: list[bytes] = []  # deferred no-reply frames, sent with the next packet
         self._request_cache: dict[tuple[int, int, int, tuple[int, ...]], bytes] = {}
+        # the input may hold stale bytes (a late, partial or unexpected reply): flush it before
+        # the next instruction. A transaction that got exactly the bytes it expected leaves the
+        # line clean, and the flush (one ioctl per cycle) is skipped.
+        self._input_dirty = True
 
     def __enter__(self) -> "DynamixelBus":
         return self
@@ -167,7 +171,9 @@ class DynamixelBus:
             frame = b"".join(self._tx_queue)
             self._tx_queue.clear()
         try:
-            self.port.reset_input_buffer()
+            if self._input_dirty:
+                self.port.reset_input_buffer()
+                self._input_dirty = False
             self.port.write(frame)
         except (OSError, ValueError) as e:  # serial.SerialException is an OSError
             raise CommunicationError(f"write to port failed: {e}",
@@ -220,6 +226,8 @@ class DynamixelBus:
                 want = max(1, reader.pending and 11)
                 timeout = self.rx_margin_s
         self.stats.corrupt_replies += reader.crc_errors
+        if len(frames) < n_frames or reader.pending or reader.crc_errors or reader.skipped_bytes:
+            self._input_dirty = True
         return frames
 
     def transact(self, servo_id: int, instruction: int, params: bytes = b"",
@@ -352,6 +360,17 @@ class DynamixelBus:
         The request frame is built once per (address, length, ids). The reply is checked for
         size, header and CRC only; the caller splits the ``8 + k * (4 + length)`` blocks
         (``ERR ID DATA CRC2`` each) itself, e.g. with one numpy structured view.
+        Equivalent to :meth:`send_fast_sync_read` then :meth:`receive_fast_sync_read`.
+        """
+        self.send_fast_sync_read(address, length, ids)
+        return self.receive_fast_sync_read(length, ids)
+
+    def send_fast_sync_read(self, address: int, length: int, ids: tuple[int, ...]) -> None:
+        """Send a FAST_SYNC_READ request (with any deferred frames) without waiting for the reply.
+
+        The reply must be collected with :meth:`receive_fast_sync_read` before the next
+        instruction (the bus is half duplex). Splitting the two lets a caller prepare the next
+        cycle while the reply is on the wire.
         """
         key = (Instruction.FAST_SYNC_READ, address, length, ids)
         frame = self._request_cache.get(key)
@@ -361,10 +380,14 @@ class DynamixelBus:
                 self._request_cache.clear()
             self._request_cache[key] = frame
         self._send(frame)
+
+    def receive_fast_sync_read(self, length: int, ids: tuple[int, ...]) -> bytes | None:
+        """The validated raw reply to the last :meth:`send_fast_sync_read` of ``ids``, or ``None``."""
         expected = 8 + len(ids) * (4 + length)
         raw = self._receive(expected, self._reply_timeout(expected, len(ids)))
         if (len(raw) != expected or raw[:4] != HEADER or raw[4] != BROADCAST_ID
                 or raw[7] != Instruction.STATUS or crc16(raw[:-2]) != (raw[-2] | (raw[-1] << 8))):
+            self._input_dirty = True
             self.stats.fast_read_failures += 1
             if len(raw) < expected:
                 self._note_timeout(ids)
@@ -429,6 +452,8 @@ class DynamixelBus:
     def _fast_reply(self, ids: list[int], lengths: list[int], request: bytes) -> GroupRead:
         expected = 8 + sum(4 + n for n in lengths)
         raw = self._receive(expected, self._reply_timeout(expected, len(ids)))
+        if len(raw) != expected:
+            self._input_dirty = True
         try:
             if len(set(lengths)) == 1:
                 blocks = decode_fast_sync_status(raw, lengths[0], ids)

@@ -13,11 +13,18 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Protocol, runtime_checkable
 
-__all__ = ["Clock", "MonotonicClock", "FakeClock", "realtime_scheduling"]
+__all__ = ["SPIN_MARGIN_S", "Clock", "MonotonicClock", "FakeClock", "realtime_scheduling"]
 
 _log = logging.getLogger(__name__)
 
-_SPIN_S = 0.0003  # [s] final stretch of a precise sleep that is busy-waited
+# [s] final stretch of a precise sleep that is busy-waited (hybrid sleep: the kernel sleep ends
+# this long before the deadline, then the monotonic clock is polled). It absorbs the timer's
+# own wake-up delay on an idle core (~50-100 us). A longer margin does not help on a saturated
+# machine: there a normal-priority task that wakes is run at the next scheduler tick (up to
+# 1/HZ = 4 ms on the benchmark VM) however early it wakes, and it may be preempted while it
+# spins; it only costs CPU (measured in BENCHMARKS.md, issue 3). Real-time scheduling is the remedy.
+SPIN_MARGIN_S = 0.0003
+_SPIN_S = SPIN_MARGIN_S
 
 
 @runtime_checkable

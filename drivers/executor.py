@@ -96,6 +96,9 @@ class CycleStats:
         cpu_mean_s: host CPU time per cycle, emulator excluded when measurable [s].
         resyncs: cycles that started more than a period late; the schedule was re-anchored
             there (the trajectory is delayed, never replayed faster than planned).
+        wait_cpu_mean_s: CPU time per cycle spent waiting for the cycle's start [s]: the busy
+            final stretch of the clock's sleep (:data:`drivers.clock.SPIN_MARGIN_S`), the
+            price of the start-time precision; not included in ``cpu_mean_s``.
     """
 
     cycles: int
@@ -108,10 +111,12 @@ class CycleStats:
     work_max_s: float
     cpu_mean_s: float
     resyncs: int = 0
+    wait_cpu_mean_s: float = 0.0
 
     @staticmethod
     def from_samples(period_s: float, lateness: Sequence[float], work: Sequence[float],
-                     cpu: Sequence[float], *, resyncs: int = 0) -> "CycleStats":
+                     cpu: Sequence[float], *, resyncs: int = 0,
+                     wait_cpu: Sequence[float] = ()) -> "CycleStats":
         if not lateness:
             return CycleStats(0, period_s, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0.0, resyncs)
         late = np.asarray(lateness)
@@ -121,7 +126,7 @@ class CycleStats:
             jitter_p50_s=float(np.percentile(late, 50)), jitter_p99_s=float(np.percentile(late, 99)),
             jitter_max_s=float(late.max()), deadline_misses=int(np.sum(w > period_s)),
             work_mean_s=float(w.mean()), work_max_s=float(w.max()), cpu_mean_s=float(np.mean(cpu)),
-            resyncs=resyncs,
+            resyncs=resyncs, wait_cpu_mean_s=float(np.mean(wait_cpu)) if len(wait_cpu) else 0.0,
         )
 
 
@@ -250,6 +255,7 @@ class Executor:
         lateness: list[float] = []
         work: list[float] = []
         cpu: list[float] = []
+        wait_cpu: list[float] = []
         q_prev = np.clip(fb0.position_rad, limits.lower_rad, limits.upper_rad)
         q_tracked = fb0.position_rad.copy()  # what the servos were last told (for tracking error)
         commands: list[FloatArray] = []
@@ -264,8 +270,10 @@ class Executor:
             for k in range(max_cycles):
                 t_nominal = t0 + k * dt
                 now = clock.now()
+                w0 = time.thread_time()
                 if now < t_nominal:
                     clock.sleep(t_nominal - now)
+                wait_cpu.append(time.thread_time() - w0)
                 start = clock.now()
                 lateness.append(start - t_nominal)
                 if start - t_nominal > dt:
@@ -312,7 +320,7 @@ class Executor:
             if log:
                 log.close()
         recovery = self._stop(last_fb, faults)
-        stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs)
+        stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs, wait_cpu=wait_cpu)
         if resyncs:
             _log.warning("%d stall(s) longer than a period: schedule re-anchored, motion delayed", resyncs)
         return ExecutionReport(not faults, tuple(faults), stats, max_track, clamped_cycles,

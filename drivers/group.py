@@ -188,7 +188,36 @@ class ServoGroup:
 
     def _fast_feedback(self) -> Feedback | None:
         """The hot path: one Fast Sync Read of every servo decoded with one numpy view."""
-        raw = self.bus.fast_sync_read_raw(INDIRECT_DATA_1, FEEDBACK_SIZE, self._ids_tuple)
+        return self.decode_fast_feedback(
+            self.bus.fast_sync_read_raw(INDIRECT_DATA_1, FEEDBACK_SIZE, self._ids_tuple))
+
+    # ---- pipelined cycle: the next request leaves before this reply is decoded ------------
+    @property
+    def pipelinable(self) -> bool:
+        """Fast Sync Read of the indirect block, every servo active: the split cycle works."""
+        return self.fast_read and self.use_indirect and not self.quarantined
+
+    def request_fast_feedback(self) -> None:
+        """Send the Fast Sync Read request of every servo (with deferred goal writes) and return
+        without waiting; collect the reply with :meth:`collect_fast_feedback_raw` before any
+        other instruction (the bus is half duplex).
+
+        With :meth:`write_goals` (``defer=True``) called for the *next* cycle while this
+        reply is on the wire, and the decode (:meth:`decode_fast_feedback`) done after the
+        next request has left, the host's work leaves the wire's critical path.
+        """
+        self.bus.send_fast_sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, self._ids_tuple)
+
+    def collect_fast_feedback_raw(self) -> bytes | None:
+        """The validated raw reply to :meth:`request_fast_feedback` (``None``: failed)."""
+        return self.bus.receive_fast_sync_read(FEEDBACK_SIZE, self._ids_tuple)
+
+    def decode_fast_feedback(self, raw: bytes | None) -> Feedback | None:
+        """Decode a raw Fast Sync Read reply of every servo; ``None`` if absent or out of order.
+
+        Updates the per-servo failure counts and quarantines servos that answered with an error
+        number, as :meth:`read_feedback` does.
+        """
         if raw is None:
             return None
         blocks = np.frombuffer(raw, dtype=_FAST_BLOCK, count=len(self.ids), offset=8)
@@ -196,20 +225,23 @@ class ServoGroup:
             _log.debug("fast sync read blocks out of order: %s", blocks["id"])
             return None
         err = blocks["error"].astype(np.int64)
+        now = self.bus.clock.now()
+        if not (err & 0x7F).any():  # the usual case: every servo answered without an error
+            self.consecutive_failures[:] = 0
+            return Feedback(now, self.map.to_radians(blocks["pos"]), self.map.velocity_to_rad_s(blocks["vel"]),
+                            blocks["cur"].astype(np.float64), blocks["hw"].astype(np.int64), err,
+                            blocks["temp"].astype(np.float64), blocks["volt"] * VOLTAGE_UNIT_V,
+                            np.ones(len(self.ids), dtype=bool))
         valid = (err & 0x7F) == 0
         hw = np.where(valid, blocks["hw"], 0).astype(np.int64)
         self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
-        if not valid.all():
-            self._quarantine([sid for sid, ok in zip(self.ids, valid) if not ok])
-        q = self.map.to_radians(blocks["pos"])
-        qd = self.map.velocity_to_rad_s(blocks["vel"])
-        if not valid.all():
-            q = np.where(valid, q, np.nan)
-            qd = np.where(valid, qd, np.nan)
+        self._quarantine([sid for sid, ok in zip(self.ids, valid) if not ok])
+        q = np.where(valid, self.map.to_radians(blocks["pos"]), np.nan)
+        qd = np.where(valid, self.map.velocity_to_rad_s(blocks["vel"]), np.nan)
         eff = np.where(valid, blocks["cur"], np.nan)
         temp = np.where(valid, blocks["temp"], np.nan)
         volt = np.where(valid, blocks["volt"] * VOLTAGE_UNIT_V, np.nan)
-        return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt, valid)
+        return Feedback(now, q, qd, eff, hw, err, temp, volt, valid)
 
     def read_feedback(self) -> Feedback:
         """One group read of the feedback block of every active servo, in joint units."""

@@ -82,3 +82,88 @@ def test_that_corrupted_replies_are_counted_and_never_taken_as_data(rig: Rig) ->
         fb = rig.group.read_feedback()
         assert np.all(np.abs(fb.position_rad[fb.valid]) < 1e-6)
     assert rig.bus.stats.corrupt_replies + rig.bus.stats.fast_read_failures > 0
+
+
+class _CountingPort:
+    """Wraps the emulator port and counts input flushes."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.flushes = 0
+
+    @property
+    def timeout(self):
+        return self.inner.timeout
+
+    @timeout.setter
+    def timeout(self, value) -> None:
+        self.inner.timeout = value
+
+    def write(self, data: bytes):
+        return self.inner.write(data)
+
+    def read(self, size: int = 1) -> bytes:
+        return self.inner.read(size)
+
+    def reset_input_buffer(self) -> None:
+        self.flushes += 1
+        self.inner.reset_input_buffer()
+
+
+def test_that_clean_cycles_skip_the_input_flush_and_a_bad_reply_brings_it_back(rig: Rig) -> None:
+    preflight(rig.group)
+    port = _CountingPort(rig.bus.port)
+    rig.bus.port = port
+    q = np.zeros(20)
+    for _ in range(5):
+        rig.group.write_goals(q, defer=True)
+        assert rig.group.read_feedback().valid.all()
+    assert port.flushes == 0
+    rig.mock.faults.truncate_probability = 1.0
+    rig.group.write_goals(q, defer=True)
+    assert not rig.group.read_feedback().valid.all()
+    rig.mock.faults.truncate_probability = 0.0
+    flushes = port.flushes
+    rig.group.write_goals(q, defer=True)
+    rig.group.read_feedback()
+    assert port.flushes == flushes + 1  # the next transaction starts from an empty input
+
+
+def test_that_a_stale_byte_left_in_the_input_never_becomes_data(rig: Rig) -> None:
+    preflight(rig.group)
+    q = np.zeros(20)
+    rig.group.write_goals(q, defer=True)
+    rig.group.read_feedback()
+    rig.bus.port._pending.insert(0, (0.0, b"\xff"))  # a stray byte after a clean cycle
+    fb = rig.group.read_feedback()  # fast read misaligned: rejected, plain read recovers
+    assert np.all(np.abs(fb.position_rad[fb.valid]) < 1e-6) and fb.valid.all()
+    assert rig.bus.stats.fast_read_failures == 1
+
+
+def test_that_pipelined_cycles_keep_the_wire_order_and_read_what_sequential_cycles_read(rig: Rig) -> None:
+    from drivers.bench import pipelined_cycles
+    from drivers.protocol import Instruction
+
+    from drivers.startup import engage
+
+    preflight(rig.group)
+    engage(rig.group, watchdog_s=None)
+    assert rig.group.pipelinable
+    start = len(rig.mock.log)
+    q = np.clip(np.full(20, 0.2), rig.servo_map.lower_rad, rig.servo_map.upper_rad)
+    assert pipelined_cycles(rig.group, q, 12) == 12
+    kinds = [p.instruction for p in rig.mock.log[start:]]
+    assert kinds == [Instruction.SYNC_WRITE, Instruction.FAST_SYNC_READ] * 12
+    assert rig.bus.stats.fast_read_failures == 0
+    rig.clock.sleep(0.5)
+    fb = rig.group.read_feedback()
+    assert np.allclose(fb.position_rad, q, atol=0.002)
+
+
+def test_that_pipelined_cycles_fall_back_and_isolate_a_silent_servo(rig: Rig) -> None:
+    from drivers.bench import pipelined_cycles
+
+    preflight(rig.group)
+    rig.mock.faults.silence(8)
+    assert pipelined_cycles(rig.group, np.zeros(20), 6) == 0
+    assert 8 in rig.group.quarantined and not rig.group.pipelinable

@@ -116,3 +116,17 @@ def test_that_the_server_links_its_device_and_removes_the_link_on_close(tmp_path
         assert server.device is not None and server.device.startswith("/dev/pts/")
         assert os.path.realpath(link) == server.device
     assert not link.exists() and not link.is_symlink()
+
+
+def test_that_the_spawned_emulator_reports_its_scheduling(server: PtyServerProcess) -> None:
+    import subprocess
+    import sys
+
+    assert server.scheduling == "normal scheduling"
+    probe = "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(5))"
+    permitted = subprocess.run([sys.executable, "-c", probe], capture_output=True).returncode == 0
+    with spawn_pty_server([1], baud_rate=BAUD, rt_priority=5) as rt:
+        assert rt.scheduling == ("SCHED_FIFO 5" if permitted else "normal scheduling")
+        with serial.Serial(rt.device, baudrate=BAUD, timeout=1.0) as port:  # and it still answers
+            port.write(encode_packet(1, Instruction.PING))
+            assert decode_packet(port.read(14)).servo_id == 1

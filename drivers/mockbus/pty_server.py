@@ -41,7 +41,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivers.clock import MonotonicClock
+from drivers.clock import MonotonicClock, realtime_scheduling
 from drivers.mockbus.bus import MockBus
 from drivers.mockbus.protocol_dxlsim import parse_ids
 
@@ -252,6 +252,20 @@ class PtyServerProcess:
         self.process = process
         self.device = device
 
+    @property
+    def scheduling(self) -> str:
+        """The child's scheduling policy as the kernel reports it, e.g. ``"SCHED_FIFO 20"``."""
+        try:
+            policy = os.sched_getscheduler(self.process.pid)
+            priority = os.sched_getparam(self.process.pid).sched_priority
+        except (OSError, AttributeError):
+            return "unknown scheduling"
+        if policy == getattr(os, "SCHED_FIFO", -1):
+            return f"SCHED_FIFO {priority}"
+        if policy == getattr(os, "SCHED_RR", -1):
+            return f"SCHED_RR {priority}"
+        return "normal scheduling"
+
     def __enter__(self) -> "PtyServerProcess":
         return self
 
@@ -272,8 +286,14 @@ class PtyServerProcess:
 
 def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate: int = 1_000_000,
                      wire_timing: bool = True, return_delay_units: int = 0,
-                     startup_timeout_s: float = 20.0) -> PtyServerProcess:
+                     rt_priority: int | None = None, startup_timeout_s: float = 20.0) -> PtyServerProcess:
     """Start ``python -m drivers.mockbus.pty_server`` in a child process; wait for its device.
+
+    Args:
+        rt_priority: run the emulator under ``SCHED_FIFO`` at this priority when permitted
+            (normal scheduling with a warning otherwise; see :attr:`PtyServerProcess.scheduling`).
+            Real servos answer on time whatever the host does; an emulator at normal priority
+            on a busy machine wakes up late and its lateness would be charged to the host.
 
     Raises:
         RuntimeError: the server did not report a device in time.
@@ -283,6 +303,8 @@ def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate
            "--baud", str(baud_rate), "--delay", str(return_delay_units)]
     if wire_timing:
         cmd.append("--wire-timing")
+    if rt_priority is not None:
+        cmd += ["--rt-priority", str(rt_priority)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
     line = ""
     if proc.stdout is not None:
@@ -304,6 +326,8 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - exerci
     p.add_argument("--wire-timing", action="store_true", help="replies take their wire time")
     p.add_argument("--delay", type=int, default=0, help="Return Delay Time (2 us units)")
     p.add_argument("--link", help="symlink to the device")
+    p.add_argument("--rt-priority", type=int, metavar="P",
+                   help="serve under SCHED_FIFO priority P (needs root or CAP_SYS_NICE): replies on time on a busy host")
     p.add_argument("-v", "--verbose", action="store_true", help="info logs (served and late replies at exit)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -313,13 +337,15 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - exerci
     server = PtyServer(bus, link=args.link)
     device = server.open()
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
-    print(f"{DEVICE_LINE_PREFIX}{device}", flush=True)
-    try:
-        server.serve()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.close()
+    with realtime_scheduling(args.rt_priority) as note:
+        _log.info("emulator: %s", note)
+        print(f"{DEVICE_LINE_PREFIX}{device}", flush=True)
+        try:
+            server.serve()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            server.close()
     st = server.stats
     _log.info("served %d replies; %d late by > 0.5 ms (max %.2f ms); %d bytes at a wrong baud rate ignored",
               st.replies, st.late_replies, st.max_lateness_s * 1e3, st.dropped_wrong_baud)
