@@ -20,19 +20,25 @@ Problem sets:
 
 Planners, all on the same strict ``ValidityChecker`` (flat scene):
 
-- ``energy``: ``EnergyPlanner`` (this issue); every path segment verified at 5 mm of travel;
+- ``energy``: ``EnergyPlanner()`` (this issue: Algorithm 2 and the section 5.2 key postures); every
+  path segment verified at 5 mm of travel;
 - ``rrt_blossom``: ``RRTBlossomPlanner`` (issue 5); edges at EDGE_RESOLUTION_M (10 mm);
 - ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
   robot_rise/planning/ompl_adapter.py (the one bench_planning.py uses): our checker as state
   validity, our MotionValidator at EDGE_RESOLUTION_M as OMPL's motion validator;
-- ``energy_raw`` (ablation, only when named in ``--planners``): the energy planner without the
-  section 5.2 key postures (``EnergyParams(keyframes=False)``).
+- ablations, only when named in ``--planners``: ``energy_raw`` (every alpha step, no key postures),
+  ``energy_s2`` (key postures, then the section 6.2 second stage, ``second_stage``), and
+  ``energy_noshortcut`` / ``energy_s2_noshortcut``: the same two through the shared B-spline and
+  timing but with the shared smoother's random shortcutting turned off
+  (``SmoothingConfig(shortcut_attempts=0)``). Those two are NOT the shared pipeline; they are
+  reported beside it to show what the shortcut does to a path that is already short and smooth.
 
 Every solved path goes through the shared smoothing and timing (``plan_trajectory``: shortcut +
 B-spline smoothing re-verified with the checker at 2.5 mm, servo-limited timing) and is measured:
 success, planning time and total time (plan + smooth + time), path length (paper 000 eq. 1
 metric, ``path_length``), minimum self and ground clearance of the smoothed path, integrated
-squared jerk of the timed joint rows, and the timed duration.
+squared jerk of the timed joint rows, the same jerk at a common duration (``common_duration_jerk``),
+the dimensionless jerk, the root's travel and rotation along the timed path, and the timed duration.
 
 Run (prints Markdown tables; ``--out`` keeps every run as JSON, ``--merge`` tables saved runs)::
 
@@ -44,6 +50,7 @@ Run (prints Markdown tables; ``--out`` keeps every run as JSON, ``--merge`` tabl
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import math
@@ -55,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.model import Robot, load_robot
-from robot_rise.planning.energy import EnergyParams, EnergyPlanner, segment_is_valid
+from robot_rise.planning.energy import EnergyParams, EnergyPlanner, SecondStageParams, segment_is_valid
 from robot_rise.planning.problem import PlanningProblem, PlanResult
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
@@ -72,6 +79,9 @@ __all__ = [
     "straight_motion_is_illegal",
     "integrated_squared_jerk",
     "dimensionless_jerk",
+    "common_duration_jerk",
+    "with_common_duration_jerk",
+    "root_motion",
     "paired_jerk_table",
     "BenchRow",
     "run_benchmark",
@@ -305,6 +315,32 @@ def dimensionless_jerk(t: np.ndarray, q: np.ndarray) -> float:
     return integrated_squared_jerk(t, q) * dur**5 / max(amp, 1e-9) ** 2
 
 
+def common_duration_jerk(jerk: float, duration_s: float, reference_s: float) -> float:
+    """Integrated squared jerk of the same motion played uniformly slower or faster, in ``reference_s`` [rad^2/s^5].
+
+    Playing q(t) as q(t D / D_ref) multiplies the third derivative by (D / D_ref)^3 and the
+    integration interval by D_ref / D, so the integral scales exactly by (D / D_ref)^5. The raw
+    integral therefore ranks a path partly by how slowly it is timed (a path timed twice as long
+    has 1/32 of the jerk); at a common duration the paths compare on shape and timing profile,
+    while amplitude (a longer path needs more jerk in the same time) still counts, unlike the
+    dimensionless jerk.
+    """
+    if not (duration_s > 0 and reference_s > 0):
+        return math.nan
+    return jerk * (duration_s / reference_s) ** 5
+
+
+def root_motion(root: np.ndarray | None) -> tuple[float, float]:
+    """Travel [m] of the root position and total rotation [rad] of its orientation along rows (T, 7); NaN without rows."""
+    if root is None or len(root) < 2:
+        return math.nan, math.nan
+    from robot_rise.planning.space import quat_angle
+
+    travel = float(np.sum(np.linalg.norm(np.diff(root[:, :3], axis=0), axis=1)))
+    rot = float(np.sum(2.0 * quat_angle(root[:-1, 3:7], root[1:, 3:7])))
+    return travel, rot
+
+
 @dataclass(frozen=True)
 class BenchRow:
     """One planner on one problem (times in s, clearances in m; NaN when unsolved)."""
@@ -323,9 +359,36 @@ class BenchRow:
     duration_s: float
     reason: str
     dimensionless_jerk: float = math.nan
+    root_travel_m: float = math.nan
+    root_rotation_rad: float = math.nan
+    jerk_common_duration: float = math.nan  # filled by with_common_duration_jerk
 
 
-PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_raw")
+PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw")
+THREE = ("energy", "rrt_blossom", "ompl_rrtconnect")  # the issue's comparison; the others are ablations
+ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw")  # run only when named in --planners
+NO_SHORTCUT = ("energy_noshortcut", "energy_s2_noshortcut")  # smoothed without the shared shortcut (not the shared pipeline)
+
+
+def with_common_duration_jerk(rows: list[BenchRow], reference: tuple[str, ...] = THREE) -> list[BenchRow]:
+    """Rows with ``jerk_common_duration``: each problem's jerks at the longest duration of the ``reference`` planners on it.
+
+    The reference duration of a problem is the longest timed duration among the rows of the
+    ``reference`` planners that solved it (all rows when none of them is present); unsolved rows
+    keep NaN.
+    """
+    ref: dict[tuple[str, str, int], float] = {}
+    have_ref = any(r.planner in reference for r in rows)
+    for r in rows:
+        if r.solved and (r.planner in reference or not have_ref):
+            k = (r.pset, r.kind, r.variant)
+            ref[k] = max(ref.get(k, 0.0), r.duration_s)
+    out = []
+    for r in rows:
+        k = (r.pset, r.kind, r.variant)
+        val = common_duration_jerk(r.jerk, r.duration_s, ref[k]) if r.solved and k in ref else math.nan
+        out.append(dataclasses.replace(r, jerk_common_duration=val))
+    return out
 
 
 def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
@@ -335,8 +398,11 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [
         ("energy", EnergyPlanner()),
         ("rrt_blossom", RRTBlossomPlanner()),
-        # ablation, only when asked for by name: Algorithm 1's raw alpha steps, no key postures
-        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False))),
+        # ablations, only when asked for by name
+        ("energy_s2", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),  # + section 6.2 second stage
+        ("energy_noshortcut", EnergyPlanner()),  # smoothed without the shared shortcut (see run_benchmark)
+        ("energy_s2_noshortcut", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
+        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False, second_stage=None))),  # Algorithm 1's raw alpha steps
     ]
     if ompl_available():
         out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))
@@ -359,6 +425,7 @@ def run_benchmark(
     lying_cache: str | None = None,
 ) -> list[BenchRow]:
     """Every planner on every problem of ``sets``; smoothing and timing through ``plan_trajectory``."""
+    from robot_rise.planning.smoothing import SmoothingConfig
     from robot_rise.planning.to_trajectory import path_length, path_min_clearance, plan_trajectory
 
     robot = load_robot()
@@ -370,16 +437,17 @@ def run_benchmark(
         problems += [("lying60", p) for p in _cached_lying60(robot, checker, lying_seed, lying_per_kind, lying_cache)]
     rows: list[BenchRow] = []
     for name, planner in _planners():
-        if planners and not any(name == p or (name.startswith(p) and name != "energy_raw") for p in planners):
+        if planners and not any(name == p or (name.startswith(p) and name not in ABLATIONS) for p in planners):
             continue
-        if not planners and name == "energy_raw":
+        if not planners and name in ABLATIONS:
             continue
+        smoothing = SmoothingConfig(shortcut_attempts=0) if name in NO_SHORTCUT else SmoothingConfig()
         for pset, pr in problems:
             problem = PlanningProblem(pr.start, pr.goal, checker, budget_s=budget_s, seed=seed + pr.variant)
             t0 = time.monotonic()
             nan = math.nan
             try:
-                out = plan_trajectory(problem, planner=planner)
+                out = plan_trajectory(problem, planner=planner, smoothing=smoothing)
             except Exception as e:  # a planner crashing is a failure of that run, not of the benchmark
                 log.exception("%s on %s/%d raised", name, pr.kind, pr.variant)
                 rows.append(BenchRow(name, pset, pr.kind, pr.variant, False, time.monotonic() - t0, nan, nan, nan, nan, nan, nan, repr(e)))
@@ -393,9 +461,11 @@ def run_benchmark(
             else:
                 traj = out.trajectory
                 clear = path_min_clearance(out.smoothed, checker)
+                travel, rot = root_motion(traj.root)
                 row = BenchRow(
                     name, pset, pr.kind, pr.variant, True, plan_s, total, path_length(out.smoothed, checker), clear["self"],
                     clear["ground"], integrated_squared_jerk(traj.t, traj.q), float(traj.t[-1]), "", dimensionless_jerk(traj.t, traj.q),
+                    travel, rot,
                 )
             rows.append(row)
             if progress is not None:
@@ -415,11 +485,13 @@ def _groups(rows: list[BenchRow]) -> list[tuple[str, str, list[BenchRow]]]:
 
 
 def summary_table(rows: list[BenchRow]) -> str:
-    """Markdown table per problem set and planner: success, times, length, clearance, jerk, duration."""
+    """Markdown table per problem set and planner: success, times, length, clearance, jerks, duration, root motion."""
+    rows = with_common_duration_jerk(rows)
     lines = [
         "| problem | planner | success | plan time median / p95 [s] | total time median / p95 [s] | path length median | "
-        "min self / ground clearance [mm] | integrated sq. jerk median [rad²/s⁵] | dimensionless jerk median | duration median [s] |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "min self / ground clearance [mm] | integrated sq. jerk median [rad²/s⁵] | jerk at common duration median [rad²/s⁵] | "
+        "dimensionless jerk median | duration median [s] | root travel / rotation median [m / rad] |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     groups = _groups(rows)
     order = {lab: k for k, lab in enumerate(dict.fromkeys(lab for _, lab, _ in groups))}
@@ -437,13 +509,19 @@ def summary_table(rows: list[BenchRow]) -> str:
         lines.append(
             f"| {label} | {planner} | {len(ok)}/{len(rs)} ({100 * len(ok) / max(1, len(rs)):.0f} %) | {mp([r.plan_s for r in ok])} | "
             f"{mp([r.total_s for r in ok])} | {med([r.path_length for r in ok])} | {clear} | {med([r.jerk for r in ok])} | "
-            f"{med([r.dimensionless_jerk for r in ok if not math.isnan(r.dimensionless_jerk)])} | {med([r.duration_s for r in ok])} |"
+            f"{med([r.jerk_common_duration for r in ok if not math.isnan(r.jerk_common_duration)])} | "
+            f"{med([r.dimensionless_jerk for r in ok if not math.isnan(r.dimensionless_jerk)])} | {med([r.duration_s for r in ok])} | "
+            f"{med([r.root_travel_m for r in ok if not math.isnan(r.root_travel_m)])} / "
+            f"{med([r.root_rotation_rad for r in ok if not math.isnan(r.root_rotation_rad)])} |"
         )
     return "\n".join(lines)
 
 
 def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
-    """Per problem label: on how many problems solved by all planners each planner had the lowest ``measure``."""
+    """Per problem label: on how many problems solved by all planners each planner had the lowest ``measure``.
+
+    ``jerk_common_duration`` must already be filled (``with_common_duration_jerk``) to rank by it.
+    """
     names = list(dict.fromkeys(r.planner for r in rows))
     lines = ["| problem | solved by all | " + " | ".join(f"{n} lowest {measure.replace('_', ' ')}" for n in names) + " |", "| --- | --- |" + " --- |" * len(names)]
     labels = list(dict.fromkeys(r.kind if r.pset == "crossed" else r.pset for r in rows))
@@ -468,10 +546,17 @@ def _load_rows(paths: list[str]) -> list[BenchRow]:
 def _print(rows: list[BenchRow]) -> None:
     print(summary_table(rows))
     print()
-    three = [r for r in rows if r.planner != "energy_raw"]  # the paired counts compare the three planners; the ablation stays out
-    print(paired_jerk_table(three))
-    print()
-    print(paired_jerk_table(three, "dimensionless_jerk"))
+    three = with_common_duration_jerk([r for r in rows if r.planner in THREE])  # the paired counts compare the three planners
+    for measure in ("jerk", "jerk_common_duration", "dimensionless_jerk"):
+        print(paired_jerk_table(three, measure))
+        print()
+    for abl in ABLATIONS:  # each ablation in place of the energy planner
+        if any(r.planner == abl for r in rows):
+            trio = (abl, "rrt_blossom", "ompl_rrtconnect")
+            alt = with_common_duration_jerk([r for r in rows if r.planner in trio], reference=trio)
+            for measure in ("jerk", "jerk_common_duration", "dimensionless_jerk"):
+                print(paired_jerk_table(alt, measure))
+                print()
     for r in rows:
         if not r.solved:
             print(f"- {r.planner} {r.pset} {r.kind}/{r.variant}: {r.reason[:300]}")

@@ -14,6 +14,10 @@ Pieces, each from the paper section named beside it:
 - ``safe_zone_keyframes``: the output of each leg reduced to its key postures, consecutive ones in
   one safe subspace (section 5.2: eq. 8 below the threshold and a legal straight motion), instead
   of every alpha step (Algorithm 1's direct and projected steps zig-zag at the step scale).
+- ``second_stage``: the section 6.2 projection of the motion (eq. 14, 19-20 with M = I): frames
+  kept close to the first-stage motion, a Laplacian smoothness term on the trajectory, the
+  linear-momentum term of eq. (18), joint limits and positional constraints as hard constraints,
+  and the validity checker as the judge of every frame and segment (no new penetration).
 
 Adaptations for a 0.51 m robot (marked "ours" in robot_rise/constants.py):
 
@@ -97,6 +101,10 @@ __all__ = [
     "tangent_difference",
     "tangent_step",
     "segment_is_valid",
+    "SecondStageParams",
+    "second_stage",
+    "resample_path",
+    "trajectory_laplacian_energy",
 ]
 
 log = logging.getLogger(__name__)
@@ -108,6 +116,42 @@ log = logging.getLogger(__name__)
 # hand through the floor (a lying robot rests on the ground: paper 004 section 8's "contact
 # invariant" setting).
 GROUND_CONTACT_ZONE_M = 0.01
+
+
+# Second stage (paper 004 section 6.2). The paper gives w_lap = 0.02, w_am = 0.2 for its spatial
+# Laplacian and angular momentum and "the maximum iteration is 30" (section 7.2); our terms are
+# on the trajectory in the scaled tangent space (see ``second_stage``), so the weights are ours.
+SECOND_STAGE_ITERATIONS = 30  # paper 004 section 7.2: "the maximum iteration is 30"
+SECOND_STAGE_FRAME_SPACING_RAD = 0.05  # ours: frames of the projected motion at most this far apart (scaled tangent norm)
+SECOND_STAGE_W_LAP = 4.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
+SECOND_STAGE_W_LM = 1.0  # ours: weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M
+SECOND_STAGE_HALVINGS = 3  # ours: a frame whose step makes it or a neighbouring segment illegal halves it this often, then keeps its posture
+
+
+@dataclass(frozen=True)
+class SecondStageParams:
+    """Parameters of the section 6.2 projection (``second_stage``).
+
+    Attributes:
+        iterations: maximum iterations (paper: 30).
+        frame_spacing_rad: the first-stage motion is resampled so that consecutive frames are at
+            most this far apart in the scaled tangent space [rad].
+        w_lap: weight of the trajectory Laplacian (second difference of the frames), eq. (19).
+        w_lm: weight of the linear-momentum deviation of eq. (18) (CoM second difference).
+        halvings: step halvings of a frame made illegal before it keeps its previous posture.
+        tolerance_rad: stop when no frame moves more than this [rad].
+    """
+
+    iterations: int = SECOND_STAGE_ITERATIONS
+    frame_spacing_rad: float = SECOND_STAGE_FRAME_SPACING_RAD
+    w_lap: float = SECOND_STAGE_W_LAP
+    w_lm: float = SECOND_STAGE_W_LM
+    halvings: int = SECOND_STAGE_HALVINGS
+    tolerance_rad: float = 1e-4
+
+    def __post_init__(self) -> None:
+        if self.frame_spacing_rad <= 0 or self.w_lap < 0 or self.w_lm < 0 or self.iterations < 0 or self.halvings < 0:
+            raise ValueError("second stage: spacing must be positive; weights, iterations and halvings non-negative")
 
 
 @dataclass(frozen=True)
@@ -135,6 +179,10 @@ class EnergyParams:
             the touched ground as positional constraints (Algorithm 2; ours: automatic contacts).
         keyframes: ``plan_energy`` returns the key postures of each leg (``safe_zone_keyframes``,
             section 5.2) instead of every alpha step.
+        second_stage: project each leg's motion by ``second_stage`` (section 6.2); None (default):
+            off. Off by default because the shared smoother (smoothing.py) shortcuts the projected
+            motion back to a taut polyline whose B-spline falls back to stop-and-go corners, which
+            measured worse than the key postures alone (BENCHMARKS.md, issue 7).
     """
 
     falloff_d: int = ENERGY_FALLOFF_D
@@ -155,6 +203,7 @@ class EnergyParams:
     move_root: bool = True
     ground_contacts: bool = True
     keyframes: bool = True
+    second_stage: SecondStageParams | None = None
 
     def __post_init__(self) -> None:
         if self.falloff_d < 1:
@@ -859,6 +908,208 @@ def safe_zone_keyframes(
     return path[keep]
 
 
+
+# --- second stage (section 6.2) -------------------------------------------------------------------
+
+
+def resample_path(checker: ValidityChecker, path: np.ndarray, spacing_rad: float, scale: np.ndarray | None = None) -> np.ndarray:
+    """A polyline of qpos rows with every segment cut into equal parts at most ``spacing_rad`` long.
+
+    Lengths are scaled tangent-space norms (``_tangent_scale``). The original rows are all kept and
+    the new ones lie on the straight tangent motions between them, so the result traces the same
+    motion (and is legal wherever the input's segments are).
+
+    Args:
+        path: qpos rows, shape (K, nq), K >= 1.
+
+    Returns:
+        qpos rows, shape (K', nq), K' >= K, same first and last row.
+    """
+    m = checker.model
+    sc = scale if scale is not None else _tangent_scale(checker, EnergyParams())
+    out = [np.array(path[0], dtype=float)]
+    for a, b in zip(path[:-1], path[1:]):
+        v = tangent_difference(m, a, b)
+        n = max(1, int(math.ceil(float(np.linalg.norm(sc * v)) / spacing_rad)))
+        out.extend(tangent_step(m, a, v * (k / n)) for k in range(1, n))
+        out.append(np.array(b, dtype=float))
+    return np.array(out)
+
+
+def trajectory_laplacian_energy(checker: ValidityChecker, path: np.ndarray, scale: np.ndarray | None = None) -> float:
+    """Sum over interior frames of 1/2 |y_(t-1) - 2 y_t + y_(t+1)|^2, y the scaled tangent chart at the first frame [rad^2]."""
+    sc = scale if scale is not None else _tangent_scale(checker, EnergyParams())
+    y = np.array([sc * tangent_difference(checker.model, path[0], q) for q in path])
+    if len(y) < 3:
+        return 0.0
+    d2 = y[:-2] - 2.0 * y[1:-1] + y[2:]
+    return 0.5 * float(np.sum(d2 * d2))
+
+
+def _second_difference(n: int) -> Any:
+    """The (n - 2, n) second-difference operator (rows 1, -2, 1) as a sparse matrix."""
+    from scipy import sparse
+
+    if n < 3:
+        return sparse.csr_matrix((0, n))
+    rows = np.repeat(np.arange(n - 2), 3)
+    cols = (np.arange(n - 2)[:, None] + np.arange(3)[None, :]).ravel()
+    vals = np.tile([1.0, -2.0, 1.0], n - 2)
+    return sparse.csr_matrix((vals, (rows, cols)), shape=(n - 2, n))
+
+
+class _CoM:
+    """Robot CoM and its Jacobian in the scaled tangent chart of a reference posture (eq. 18)."""
+
+    def __init__(self, checker: ValidityChecker, scale: np.ndarray, q_ref: np.ndarray) -> None:
+        self.m = checker.model
+        self.d = mujoco.MjData(self.m)
+        self.scale = scale
+        self.root_ang = np.asarray(checker.index.qvel_root)[3:6]
+        jnt = int(np.flatnonzero(self.m.jnt_type == int(mujoco.mjtJoint.mjJNT_FREE))[0])
+        self.body = int(self.m.jnt_bodyid[jnt])
+        self.adr = int(self.m.jnt_qposadr[jnt])
+        self.r_ref = self._rot(q_ref)
+        self.jac = np.zeros((3, self.m.nv))
+
+    def _rot(self, q: np.ndarray) -> np.ndarray:
+        r = np.zeros(9)
+        mujoco.mju_quat2Mat(r, np.asarray(q[self.adr + 3 : self.adr + 7], dtype=float))
+        return r.reshape(3, 3)
+
+    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """CoM [units of ROOT_TRANSLATION_SCALE_M], shape (3,), and d CoM / d y, shape (3, nv)."""
+        m, d = self.m, self.d
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_jacSubtreeCom(m, d, self.jac, self.body)
+        s_root = self.scale[0]  # 1 / ROOT_TRANSLATION_SCALE_M on the root translation rows
+        jac = self.jac * s_root
+        # the chart's root rotation is in the reference root frame, qvel's in the current one
+        a = self.root_ang
+        jac[:, a] = jac[:, a] @ (self._rot(q).T @ self.r_ref)
+        return d.subtree_com[self.body] * s_root, jac / self.scale[None, :]
+
+
+def second_stage(
+    checker: ValidityChecker,
+    path: np.ndarray,
+    *,
+    params: SecondStageParams = SecondStageParams(),
+    constraints: tuple[PositionalConstraint, ...] = (),
+    resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
+    root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M,
+    stats: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """Project a legal first-stage motion onto the constraint manifold of paper 004 section 6.2.
+
+    The motion (``path``, resampled by ``resample_path`` to frames ``frame_spacing_rad`` apart)
+    is written in the scaled tangent chart y of its first frame. Each iteration solves the
+    quadratic problem of eq. (19) with M = I for the frame changes dy (end frames fixed):
+
+        min 1/2 sum_t |dy_t|^2 + w_lap/2 sum_t |Lap(y + dy)_t|^2 + w_lm/2 sum_t |Lap(c + J_c dy)_t|^2
+
+    i.e. the linear system of eq. (20) (sparse, banded), where Lap is the second difference
+    over frames (the trajectory Laplacian: with frames at equal time steps, the change of velocity)
+    and c_t the robot's CoM with its Jacobian J_c (the linear-momentum deviation of eq. 18, at
+    equal time steps m (v_t - v_(t+1)) ~ m Lap(c)_t). Joint limits (eq. 13) and positional
+    constraints (eq. 12) are hard: each frame's change is projected by eq. (10)-(11) and clipped to
+    the joint bounds. No new penetrations: the paper relies on its (spatial) Laplacian energy for
+    that; we ask the validity checker. A frame whose new posture, or a segment next to it at
+    ``resolution_m``, is illegal has its change halved (``halvings`` times) and then keeps its
+    previous posture, so every iteration's motion is legal. The spatial Laplacian of eq. (15)-(16)
+    and the angular momentum of eq. (17) are not used.
+
+    Args:
+        path: a legal motion (every row legal, every straight segment legal at ``resolution_m``),
+            qpos rows, shape (K, nq).
+        stats: filled with frames, iterations, held (frame changes refused) and Laplacian energy
+            before / after.
+
+    Returns:
+        the projected motion, qpos rows, shape (K', nq): same first and last row, legal at
+        ``resolution_m``.
+    """
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    m = checker.model
+    ep = dataclasses.replace(EnergyParams(), root_translation_scale_m=root_translation_scale_m)
+    scale = _tangent_scale(checker, ep)
+    levers = _levers(checker)
+    q = resample_path(checker, np.asarray(path, dtype=float), params.frame_spacing_rad, scale)
+    n, nv = len(q), int(m.nv)
+    st = stats if stats is not None else {}
+    st.update(frames=n, iterations=0, held=0, laplacian_before=trajectory_laplacian_energy(checker, q, scale))
+    if n < 3 or params.iterations == 0:
+        st["laplacian_after"] = st["laplacian_before"]
+        return q
+    q_ref = q[0].copy()
+    cons = _Constraints(checker, constraints, scale)
+    com = _CoM(checker, scale, q_ref)
+    qj = checker.index.qpos_joints
+    lo, hi = checker.robot.joint_lower, checker.robot.joint_upper
+    D = _second_difference(n)
+    inner = slice(1, n - 1)
+    DtD = (D.T @ D).tocsr()
+    A_lap = sparse.kron(DtD[inner, inner], sparse.identity(nv), format="csr")
+    seg_ok = lambda a, b: segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=levers)  # noqa: E731
+    for it in range(params.iterations):
+        st["iterations"] = it + 1
+        y = np.array([scale * tangent_difference(m, q_ref, x) for x in q])  # (n, nv)
+        rhs = -params.w_lap * (DtD @ y)[inner].ravel()
+        A = sparse.identity((n - 2) * nv, format="csr") + params.w_lap * A_lap
+        if params.w_lm > 0.0:
+            cj = [com(x) for x in q]
+            c = np.array([v for v, _ in cj])
+            # G: (n - 2) blocks of 3 rows; block i = J_i - 2 J_(i+1) + J_(i+2), interior frames only
+            gr, gc, gv = [], [], []
+            for i in range(n - 2):
+                for k, w in zip(range(i, i + 3), (1.0, -2.0, 1.0)):
+                    if 1 <= k <= n - 2:
+                        gr.append(np.repeat(3 * i + np.arange(3), nv))
+                        gc.append(np.tile((k - 1) * nv + np.arange(nv), 3))
+                        gv.append((w * cj[k][1]).ravel())
+            G = sparse.csr_matrix((np.concatenate(gv), (np.concatenate(gr), np.concatenate(gc))), shape=(3 * (n - 2), (n - 2) * nv))
+            r = (D @ c).ravel()
+            A = A + params.w_lm * (G.T @ G)
+            rhs = rhs - params.w_lm * (G.T @ r)
+        dy = np.zeros((n, nv))
+        dy[inner] = np.asarray(spsolve(A.tocsc(), rhs)).reshape(n - 2, nv)
+        # the change of each frame as a step in its own tangent space (the chart's root rotation is
+        # in the reference frame), projected on the hard constraints (eq. 10-11, 13)
+        step = np.zeros((n, nv))
+        for t in range(1, n - 1):
+            target = tangent_step(m, q_ref, (y[t] + dy[t]) / scale)
+            step[t] = scale * tangent_difference(m, q[t], target)
+            K, C = cons.rows(q[t], step[t])
+            if K.shape[0]:
+                step[t] = _project_constraints(step[t], K, C, np.zeros(nv), ep)
+        f = np.ones(n)
+        f[0] = f[-1] = 0.0
+        for rnd in range(params.halvings + 2):
+            cand = np.array([tangent_step(m, q[t], step[t] * f[t] / scale) if f[t] > 0 else q[t] for t in range(n)])
+            cand[:, qj] = np.clip(cand[:, qj], lo, hi)
+            bad = np.array([f[t] > 0 and not checker.is_valid_qpos(cand[t]) for t in range(n)])
+            for t in range(n - 1):
+                if (f[t] > 0 or f[t + 1] > 0) and not seg_ok(cand[t], cand[t + 1]):
+                    bad[t] |= f[t] > 0
+                    bad[t + 1] |= f[t + 1] > 0
+            if not bad.any():
+                break
+            f[bad] = 0.0 if rnd >= params.halvings else 0.5 * f[bad]
+        else:  # unreachable: with every changed frame reverted the motion is the previous, legal one
+            cand = q
+        st["held"] += int(np.sum(f[1:-1] == 0.0))
+        moved = float(np.max(np.abs(scale * np.array([tangent_difference(m, a, b) for a, b in zip(q, cand)]))))
+        q = cand
+        if moved < params.tolerance_rad:
+            break
+    st["laplacian_after"] = trajectory_laplacian_energy(checker, q, scale)
+    return q
+
+
 FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
 
 
@@ -927,6 +1178,11 @@ def plan_energy(
         if params.keyframes and len(q_leg) > 2:
             q_leg = safe_zone_keyframes(checker, q_leg, gli, threshold=params.gli_threshold, resolution_m=params.verify_resolution_m)
             stats["legs"][-1]["key_postures"] = len(q_leg)
+        if params.second_stage is not None and len(q_leg) > 1:
+            s2: dict[str, Any] = {}
+            q_leg = second_stage(checker, q_leg, params=params.second_stage, constraints=constraints,
+                                 resolution_m=params.verify_resolution_m, root_translation_scale_m=params.root_translation_scale_m, stats=s2)
+            stats["legs"][-1]["second_stage"] = s2
         rows.extend(q_leg if k == 0 else q_leg[1:])
     stats["seconds"] = time.monotonic() - t0
     stats["waypoints"] = len(rows)
