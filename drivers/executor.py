@@ -343,16 +343,22 @@ class Executor:
         recovery = None
         if cfg.stop_policy is StopPolicy.LIMP:
             for pwm in limp_pwm_ramp(885, cfg.limp_s, dt):
-                group.write_all(GOAL_PWM, 2, int(pwm))
-                clock.sleep(dt)
+                try:
+                    group.write_all(GOAL_PWM, 2, int(pwm))
+                    clock.sleep(dt)
+                except KeyboardInterrupt:  # a second Ctrl-C must not cut the slow limp short
+                    _log.warning("stop in progress: finishing the limp ramp (%.1f s)", cfg.limp_s)
             group.torque(False)
             disarm_watchdog(group)
             return None
         shut = [sid for sid, bits in zip(group.ids, now_fb.hardware_error) if bits]
+        # streaming is over and every servo holds its present position: the Bus Watchdog has
+        # nothing left to guard, and recovery (reboot + boot wait of one servo) would starve the
+        # others' watchdogs and trip them
+        disarm_watchdog(group)
         if faults and shut and cfg.recovery_attempts > 0:
             _log.warning("attempting recovery of servo(s) %s", shut)
             recovery = recover(group, shut, attempts=cfg.recovery_attempts)
-        disarm_watchdog(group)
         return recovery
 
 

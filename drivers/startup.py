@@ -202,7 +202,10 @@ def disarm_watchdog(group: ServoGroup) -> None:
 def recover(group: ServoGroup, ids: list[int], *, attempts: int = 2, boot_wait_s: float = 0.1,
             torque_on: bool = True) -> RecoveryReport:
     """Try to bring shut-down or silent servos back: reboot, re-apply RAM settings,
-    goal = present, torque on. At most ``attempts`` tries per servo."""
+    goal = present, torque on. At most ``attempts`` tries per servo.
+
+    Only ``ids`` are spoken to, for ``boot_wait_s`` and more: disarm the others' Bus Watchdog
+    first (:func:`disarm_watchdog`) or it trips (the executor's stop does so)."""
     bus = group.bus
     recovered, failed, messages = [], [], []
     total = 0

@@ -24,13 +24,30 @@ SERVO_MAP = REPO / "configs" / "robots" / "op3" / "servos.toml"
 _names = itertools.count()
 
 
+_HARDWARE_SKIP = "needs a real Dynamixel bus: set ROBOT_RISE_PORT=/dev/ttyUSB0"
+_skipped_hardware: list[str] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "motion: engages torque on a real bus (also needs ROBOT_RISE_ALLOW_MOTION=1)")
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if os.environ.get("ROBOT_RISE_PORT"):
         return
-    skip = pytest.mark.skip(reason="needs a real Dynamixel bus: set ROBOT_RISE_PORT=/dev/ttyUSB0")
+    skip = pytest.mark.skip(reason=_HARDWARE_SKIP)
     for item in items:
         if "hardware" in item.keywords:
             item.add_marker(skip)
+            _skipped_hardware.append(item.nodeid)
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """Say why the real-bus variants did not run (pytest alone prints only an ``s``)."""
+    if _skipped_hardware:
+        terminalreporter.write_line(
+            f"hil_tests: {len(_skipped_hardware)} real-bus test(s) skipped ({_HARDWARE_SKIP}); "
+            "their emulator variants ran")
 
 
 @pytest.fixture(scope="session")

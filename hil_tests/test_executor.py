@@ -76,6 +76,11 @@ def _assert_goals_safe(r: Rig) -> None:
         last[sid] = tick
 
 
+def _interrupt(bus) -> None:
+    """A scheduled fault: the operator presses Ctrl-C."""
+    raise KeyboardInterrupt
+
+
 def test_that_interpolation_is_linear_and_clamped_at_the_ends() -> None:
     t = np.array([0.0, 1.0])
     q = np.array([[0.0], [2.0]])
@@ -140,8 +145,11 @@ def test_that_an_unsafe_trajectory_is_clamped_in_limits_and_step(servo_map: Serv
         (lambda bus: bus.faults.silence(11), FaultKind.COMMUNICATION),
         (lambda bus: setattr(bus.faults, "heating_gain", 3e4), FaultKind.TEMPERATURE),
         (lambda bus: setattr(bus.faults, "input_voltage_v", 9.0), FaultKind.VOLTAGE),
+        (lambda bus: setattr(bus.faults, "input_voltage_v", 15.5), FaultKind.VOLTAGE),
+        (lambda bus: bus.faults.hardware_error(14, HardwareError.ELECTRICAL_SHOCK), FaultKind.HARDWARE),
+        (lambda bus: bus.faults.deaf_ids.add(17), FaultKind.COMMUNICATION),
     ],
-    ids=["overload", "silent-servo", "overheating", "undervoltage"],
+    ids=["overload", "silent-servo", "overheating", "undervoltage", "overvoltage", "electrical-shock", "deaf-servo"],
 )
 def test_that_each_fault_stops_the_run_safely_and_is_reported(servo_map: ServoMap, fault, kind) -> None:
     r = _ready(servo_map)
@@ -176,10 +184,7 @@ def test_that_occasional_corrupt_replies_do_not_abort_the_run(servo_map: ServoMa
 def test_that_ctrl_c_stops_by_policy_and_is_reported(servo_map: ServoMap) -> None:
     r = _ready(servo_map)
 
-    def interrupt(bus):
-        raise KeyboardInterrupt
-
-    r.mock.faults.at(r.clock.now() + 0.25, interrupt)
+    r.mock.faults.at(r.clock.now() + 0.25, _interrupt)
     rep = _run(r)
     assert rep.interrupted and not rep.completed
     _assert_goals_safe(r)
@@ -230,3 +235,57 @@ def test_that_a_stall_delays_the_motion_instead_of_replaying_missed_cycles_fast(
     assert rep.stats.jitter_max_s >= 0.03  # the stall hit mid-cycle: the next start is late
     assert rep.stats.jitter_p50_s < 0.001  # after the stall the schedule is back on its period
     _assert_goals_safe(r)
+
+
+@pytest.mark.parametrize("fault", ["drop_probability", "truncate_probability"])
+def test_that_lost_or_cut_replies_never_lead_to_an_unsafe_goal(servo_map: ServoMap, fault: str) -> None:
+    r = _ready(servo_map)
+    setattr(r.mock.faults, fault, 0.05)
+    rep = _run(r)
+    # a few lost cycles are tolerated (quarantine, re-ping); a run of them is a fault
+    assert rep.completed or {f.kind for f in rep.faults} == {FaultKind.COMMUNICATION}
+    _assert_goals_safe(r)
+
+
+def test_that_ctrl_c_under_the_limp_policy_ramps_down_and_turns_torque_off(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+
+    r.mock.faults.at(r.clock.now() + 0.25, _interrupt)
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.3)
+    assert rep.interrupted
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)
+    _assert_goals_safe(r)
+
+
+def test_that_recovering_one_servo_does_not_trip_the_others_watchdog(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD))
+    rep = _run(r, recovery_attempts=2)
+    assert rep.recovery is not None and rep.recovery.ok
+    r.mock.advance()
+    assert [s for s in servo_map.ids if r.mock.servo(s).watchdog_trips] == []
+    assert all(r.mock.servo(s).torque_on for s in servo_map.ids)  # holding, all of them
+
+
+def test_that_a_blocked_joint_aborts_on_tracking_error_and_holds(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.2, lambda bus: bus.faults.block(9))
+    rep = _run(r, _trajectory(servo_map, amplitude=1.0))
+    assert not rep.completed
+    tracking = [f for f in rep.faults if f.kind is FaultKind.TRACKING]
+    assert tracking and {f.index for f in tracking} == {servo_map.ids.index(9)}
+    assert rep.max_tracking_error_rad > 0.35
+    _assert_goals_safe(r)
+
+
+def test_that_a_second_ctrl_c_does_not_cut_the_limp_ramp_short(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+
+    r.mock.faults.at(r.clock.now() + 0.25, _interrupt)
+    r.mock.faults.at(r.clock.now() + 0.45, _interrupt)  # during the 0.5 s ramp
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.5)
+    assert rep.interrupted
+    pwm = [struct.unpack_from("<h", p.params, 5)[0] for p in r.mock.log
+           if p.instruction == Instruction.SYNC_WRITE and struct.unpack_from("<H", p.params)[0] == 100]
+    assert len(pwm) >= 48 and pwm == sorted(pwm, reverse=True) and pwm[-1] == 0
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)

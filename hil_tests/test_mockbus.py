@@ -208,3 +208,29 @@ def test_that_dynamixel_sdk_group_classes_work_against_the_emulator() -> None:
     assert [reader.getData(i, 116, 4) for i in (1, 2, 3)] == [2001, 2002, 2003]
     assert reader.fastSyncRead() == COMM_SUCCESS
     assert [reader.getData(i, 116, 4) for i in (1, 2, 3)] == [2001, 2002, 2003]
+
+
+def test_that_bulk_write_applies_each_item_to_its_own_servo_and_span() -> None:
+    from drivers.protocol import bulk_write_params
+
+    bus = _bus()
+    out = _ask(bus, BROADCAST_ID, Instruction.BULK_WRITE,
+               bulk_write_params([(1, 65, b"\x01"), (3, 116, struct.pack("<i", 2100))]))
+    assert out == []
+    assert bus.servo(1).get("led") == 1 and bus.servo(3).get("goal_position") == 2100
+    assert bus.servo(2).get("led") == 0 and bus.servo(1).get("goal_position") == 2048
+
+
+def test_that_temperature_rises_under_load_and_not_without_torque() -> None:
+    loaded, idle = _bus(), _bus()
+    for bus in (loaded, idle):
+        _ask(bus, 1, Instruction.WRITE, write_params(116, struct.pack("<i", 2400)))
+    _ask(loaded, 1, Instruction.WRITE, write_params(64, b"\x01"))
+    loaded.faults.block(1)  # pushing against an obstacle toward a goal 0.5 rad away: stall torque
+    loaded.faults.heating_gain = idle.faults.heating_gain = 50.0
+    for bus in (loaded, idle):
+        bus.clock.sleep(20.0)  # type: ignore[attr-defined]
+        bus.advance()
+    assert loaded.servo(1).get("present_temperature") > 40
+    assert idle.servo(1).get("present_temperature") == 30
+    assert loaded.servo(2).get("present_temperature") == 30

@@ -69,3 +69,62 @@ def test_that_recovery_gives_up_after_its_attempts_with_a_report(rig: Rig) -> No
 
 def test_that_arm_watchdog_converts_seconds_to_20_ms_units(rig: Rig) -> None:
     assert arm_watchdog(rig.group, 0.25) == 12 and arm_watchdog(rig.group, 10.0) == 127
+
+
+def test_that_preflight_turns_torque_off_before_writing_eeprom_that_differs(rig: Rig) -> None:
+    for s in rig.servo_map.servos:
+        rig.bus.write(s.id, 64, b"\x01")  # the servos were left holding
+    report = preflight(rig.group)
+    assert report.changes  # the emulator refuses EEPROM writes with torque on: they all landed
+    for s in rig.servo_map.servos:
+        lo, hi = s.limit_ticks
+        emu = rig.mock.servo(s.id)
+        assert (emu.get("min_position_limit"), emu.get("max_position_limit")) == (lo, hi)
+        assert not emu.torque_on  # engage() turns it back on, goal = present first
+
+
+def _fake_ftdi(tmp_path, value: str, *, writable: bool = True):
+    dev = tmp_path / "dev" / "ttyUSB7"
+    dev.parent.mkdir()
+    dev.touch()
+    sysfs = tmp_path / "sys"
+    (sysfs / "ttyUSB7").mkdir(parents=True)
+    timer = sysfs / "ttyUSB7" / "latency_timer"
+    timer.write_text(value)
+    if not writable:
+        timer.chmod(0o444)
+    return str(dev), sysfs, timer
+
+
+def test_that_an_ftdi_latency_timer_of_16_ms_is_lowered_to_1(tmp_path) -> None:
+    from drivers.port import ensure_low_latency
+
+    device, sysfs, timer = _fake_ftdi(tmp_path, "16\n")
+    result = ensure_low_latency(device, sysfs=sysfs)
+    assert (result.before_ms, result.after_ms) == (16, 1) and timer.read_text().strip() == "1"
+    assert "lowered 16 -> 1" in result.note
+
+
+def test_that_an_unwritable_latency_timer_degrades_to_a_warning_with_a_hint(tmp_path, monkeypatch) -> None:
+    from pathlib import Path
+
+    from drivers.port import ensure_low_latency
+
+    device, sysfs, timer = _fake_ftdi(tmp_path, "16\n")
+
+    def refuse(self, *a, **k):
+        raise PermissionError("read-only file system")
+
+    monkeypatch.setattr(Path, "write_text", refuse)  # root ignores chmod; refuse the write itself
+    result = ensure_low_latency(device, sysfs=sysfs)
+    assert (result.before_ms, result.after_ms) == (16, 16)
+    assert "caps the loop near 31 Hz" in result.note and "udev" in result.note
+
+
+def test_that_an_adapter_without_latency_timer_is_reported_not_raised(tmp_path) -> None:
+    from drivers.port import ensure_low_latency
+
+    device = tmp_path / "ttyACM0"
+    device.touch()
+    result = ensure_low_latency(str(device), sysfs=tmp_path)
+    assert result.path is None and "no latency timer" in result.note

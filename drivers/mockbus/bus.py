@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from drivers.clock import Clock, MonotonicClock
 from drivers.control_table import CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.mockbus.faults import FaultInjector
-from drivers.mockbus.plant import KinematicPlant, Plant
+from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion
 from drivers.mockbus.servo import EmulatedServo
 from drivers.protocol import (
     BROADCAST_ID,
@@ -134,8 +134,14 @@ class MockBus:
             del self.faults.pending_hardware_errors[sid]
         commands = {sid: s.command() for sid, s in self.servos.items()}
         motions = self.plant.advance(dt, commands)
+        stuck = self.faults.stuck_ids
         for sid, s in self.servos.items():
             m = motions.get(sid)
+            if sid in stuck:  # blocked shaft: no motion; the motor pushes toward its goal
+                c = commands[sid]
+                push = c.stiffness_nm_per_rad * (c.goal_rad - s.position_rad) if c.torque_on else 0.0
+                push = max(-c.stall_torque_nm, min(c.stall_torque_nm, push)) * c.pwm_fraction
+                m = ServoMotion(s.position_rad, 0.0, push)
             if m is not None:
                 s.apply_motion(m, dt, now, self.faults.voltage_of(sid), self.faults.heating_gain)
 

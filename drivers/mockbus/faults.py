@@ -35,6 +35,9 @@ class FaultInjector:
         silent_ids: servos that never answer (as if unplugged); they still hear writes if
             ``deaf`` is False.
         deaf_ids: servos that ignore every packet (no writes applied either).
+        stuck_ids: servos whose shaft is blocked (an obstacle, a jammed gear): they answer, but
+            the shaft does not move and the motor pushes toward its goal (up to stall torque,
+            heating up).
         drop_probability: chance that a status packet is not sent.
         corrupt_probability: chance that one byte of a status packet is flipped.
         truncate_probability: chance that a status packet is cut short.
@@ -47,6 +50,7 @@ class FaultInjector:
 
     silent_ids: set[int] = field(default_factory=set)
     deaf_ids: set[int] = field(default_factory=set)
+    stuck_ids: set[int] = field(default_factory=set)
     drop_probability: float = 0.0
     corrupt_probability: float = 0.0
     truncate_probability: float = 0.0
@@ -68,6 +72,11 @@ class FaultInjector:
     def restore(self, servo_id: int) -> None:
         self.silent_ids.discard(servo_id)
         self.deaf_ids.discard(servo_id)
+        self.stuck_ids.discard(servo_id)
+
+    def block(self, servo_id: int) -> None:
+        """Block the shaft of ``servo_id`` where it is (see ``stuck_ids``)."""
+        self.stuck_ids.add(servo_id)
 
     def hardware_error(self, servo_id: int, bits: int) -> None:
         """Raise hardware error ``bits`` (see ``HardwareError``) on ``servo_id`` at the next step."""

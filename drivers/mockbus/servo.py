@@ -101,6 +101,7 @@ class EmulatedServo:
         self.temperature_c = self.thermal.ambient_c
         self.watchdog_last_feed_s = 0.0
         self.watchdog_tripped = False
+        self.watchdog_trips = 0  # times the Bus Watchdog tripped since power-on (for tests and tools)
         self.boot_until_s = 0.0
         self.registered: tuple[int, bytes] | None = None
         self.injected_errors = 0
@@ -255,6 +256,7 @@ class EmulatedServo:
     def trip_watchdog(self) -> None:
         _log.info("servo %d: bus watchdog tripped", self.id)
         self.watchdog_tripped = True
+        self.watchdog_trips += 1
         self._set("bus_watchdog", -1)
         ticks = int(round(self.position_rad / RAD_PER_TICK)) + CENTER_TICKS
         self._set("goal_position", ticks)
