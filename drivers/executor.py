@@ -81,6 +81,16 @@ class ExecutorConfig:
             raise SafetyError(f"rate_hz {self.rate_hz} outside 1..2000 Hz")
         if not 0.0 < self.speed <= 2.0:
             raise SafetyError(f"speed {self.speed} outside (0, 2]")
+        if self.approach_s is not None and not (self.approach_s > 0 and math.isfinite(self.approach_s)):
+            raise SafetyError(f"approach time {self.approach_s} s must be positive")
+        if not (self.limp_s > 0 and math.isfinite(self.limp_s)):
+            raise SafetyError(f"limp time {self.limp_s} s must be positive")
+        if not (0.0 <= self.hold_s < math.inf):
+            raise SafetyError(f"hold time {self.hold_s} s must be >= 0")
+        if self.recovery_attempts < 0:
+            raise SafetyError(f"recovery attempts {self.recovery_attempts} must be >= 0")
+        if self.realtime_priority is not None and not 1 <= self.realtime_priority <= 99:
+            raise SafetyError(f"real-time priority {self.realtime_priority} outside 1..99")
 
 
 @dataclass(frozen=True)

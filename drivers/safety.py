@@ -29,6 +29,9 @@ __all__ = [
     "FaultKind",
     "Fault",
     "StartCheck",
+    "LIMIT_TOLERANCE_RAD",
+    "LimitCheck",
+    "check_limits",
     "clamp_to_limits",
     "clamp_step",
     "safe_target",
@@ -161,6 +164,50 @@ def safe_target(q_desired_rad: FloatArray, q_previous_rad: FloatArray, limits: S
     q_cmd = clamp_step(q_lim, prev, limits.max_step_rad(dt_s))
     clamped = bool(np.any(np.abs(q_cmd - np.asarray(q_desired_rad)) > 1e-12))
     return q_cmd, clamped
+
+
+LIMIT_TOLERANCE_RAD = 0.02  # [rad] excursion beyond a joint limit still accepted (and clamped)
+
+
+@dataclass(frozen=True)
+class LimitCheck:
+    """How far a trajectory leaves the joint limits.
+
+    Attributes:
+        ok: no sample beyond a limit by more than the tolerance.
+        max_excess_rad: largest excursion beyond a limit [rad] (0 if inside).
+        joint_index: joint of that excursion (map order).
+        sample_index: row of that excursion.
+        value_rad: the sample's value [rad].
+        limit_rad: the limit it crosses [rad].
+    """
+
+    ok: bool
+    max_excess_rad: float
+    joint_index: int
+    sample_index: int
+    value_rad: float
+    limit_rad: float
+
+
+def check_limits(q_rad: FloatArray, limits: SafetyLimits, *,
+                 tolerance_rad: float = LIMIT_TOLERANCE_RAD) -> LimitCheck:
+    """Preflight check of a whole trajectory ``q_rad`` (shape (T, n), map order) against the limits.
+
+    The executor clamps every target anyway; a trajectory far outside the limits is a wrong
+    file (other robot, other servo map, degrees for radians) and is better refused before
+    anything moves.
+    """
+    q = np.asarray(q_rad, dtype=float)
+    above = q - limits.upper_rad
+    below = limits.lower_rad - q
+    excess = np.maximum(above, below)
+    if excess.size == 0:
+        return LimitCheck(True, 0.0, -1, -1, 0.0, 0.0)
+    row, col = np.unravel_index(int(np.argmax(excess)), excess.shape)
+    worst = float(excess[row, col])
+    limit = float(limits.upper_rad[col] if above[row, col] >= below[row, col] else limits.lower_rad[col])
+    return LimitCheck(worst <= tolerance_rad, max(worst, 0.0), int(col), int(row), float(q[row, col]), limit)
 
 
 @dataclass(frozen=True)

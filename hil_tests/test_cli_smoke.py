@@ -84,6 +84,33 @@ def test_that_execute_refuses_a_trajectory_proven_on_changed_robot_files(
     assert "proven on another version of robot 'op3'" in err and "000000000000..." in err
 
 
+@pytest.mark.parametrize(
+    ("edit", "args", "message"),
+    [
+        (lambda q, k: q.__setitem__((2, k), 50.0), [], "trajectory leaves the joint limits: r_sho_pitch = 50.000 rad"),
+        (None, ["--approach", "-1"], "approach time -1.0 s must be positive"),
+        (None, ["--rt-priority", "500"], "real-time priority 500 outside 1..99"),
+        (None, ["--log", "/proc/no/such/dir/run.csv"], "cannot write the log /proc/no/such/dir/run.csv"),
+    ],
+    ids=["far-outside-limits", "negative-approach", "bad-priority", "unwritable-log"],
+)
+def test_that_bad_execute_input_is_one_error_line_before_anything_moves(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str], edit, args, message) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))
+    if edit is not None:
+        from robot_rise.trajectory import read_trajectory
+
+        tr = read_trajectory(path)
+        q = np.array(tr.q)
+        edit(q, robot.joint_names.index("r_sho_pitch"))
+        write_trajectory(path, Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report))
+    assert main(["execute", str(path), "--mock", "--yes", *args]) == 2
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and message in lines[0], err
+    assert "Traceback" not in err and "preflight" not in out  # refused before the bus was touched
+
+
 def test_that_execute_with_the_twin_reports_the_simulated_robot_upright(
         robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))

@@ -111,3 +111,26 @@ def test_that_the_limp_ramp_decreases_to_zero() -> None:
 def test_that_bad_limits_are_refused() -> None:
     with pytest.raises(SafetyError):
         SafetyLimits(np.array([1.0]), np.array([0.0]))
+
+
+def test_that_a_trajectory_far_outside_the_limits_is_flagged_with_joint_sample_and_limit() -> None:
+    from drivers.safety import check_limits
+
+    lim = _limits()
+    q = np.zeros((4, 3))
+    assert check_limits(q, lim).ok
+    q[2, 1] = float(lim.upper_rad[1]) + 0.01  # within the tolerance: clamped, not refused
+    assert check_limits(q, lim).ok
+    q[3, 2] = float(lim.lower_rad[2]) - 0.5
+    c = check_limits(q, lim)
+    assert not c.ok and (c.joint_index, c.sample_index) == (2, 3)
+    assert c.limit_rad == lim.lower_rad[2] and c.max_excess_rad == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("field", [{"approach_s": 0.0}, {"limp_s": -1.0}, {"hold_s": -0.1},
+                                   {"recovery_attempts": -1}, {"realtime_priority": 0}, {"rate_hz": 5000.0}])
+def test_that_bad_executor_settings_are_refused(field: dict) -> None:
+    from drivers.executor import ExecutorConfig
+
+    with pytest.raises(SafetyError):
+        ExecutorConfig(**field)

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
 
     from drivers.clock import FakeClock
     from drivers.executor import Executor, ExecutorConfig
-    from drivers.safety import SafetyLimits, StopPolicy
+    from drivers.safety import SafetyLimits, StopPolicy, check_limits
     from drivers.servo_map import load_servo_map
     from drivers.session import connect, mock_url_for
     from drivers.startup import disarm_watchdog, engage, preflight
@@ -98,6 +98,19 @@ def run(args: argparse.Namespace) -> int:
         scene = traj.report.get("scene")
         print(f"proven on robot {robot.name}" + (f" in scene {scene}" if scene else ""))
     smap = load_servo_map(robot.directory / "servos.toml")
+    limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+    lim = check_limits(np.asarray(traj.q)[:, smap.index_of(traj.joint_names)], limits)
+    if not lim.ok:
+        joint = smap.servos[lim.joint_index].joint
+        raise RobotRiseError(
+            f"trajectory leaves the joint limits: {joint} = {lim.value_rad:.3f} rad at t = "
+            f"{float(traj.t[lim.sample_index]):.2f} s (limit {lim.limit_rad:.3f} rad, servos.toml)",
+            hint="is it for this robot and in radians? check it with robot-rise check TRAJ")
+    if args.log:  # fail before anything is powered, not after torque is on
+        try:
+            Path(args.log).open("w").close()
+        except OSError as e:
+            raise RobotRiseError(f"cannot write the log {args.log}: {e.strerror or e}") from e
     port = args.port
     twin = None
     clock = None
@@ -127,7 +140,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: hardware errors at start: {pre.hardware_errors}", file=sys.stderr)
             print("hint: robot-rise servos reboot ID --port PORT", file=sys.stderr)
             return 2
-        limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
         executor = Executor(conn.group, limits, config)
         fb = conn.group.read_feedback()
         executor.prepare(traj.joint_names, traj.t, traj.q, fb.position_rad)  # refuses a far start
