@@ -130,3 +130,54 @@ def test_that_the_spawned_emulator_reports_its_scheduling(server: PtyServerProce
         with serial.Serial(rt.device, baudrate=BAUD, timeout=1.0) as port:  # and it still answers
             port.write(encode_packet(1, Instruction.PING))
             assert decode_packet(port.read(14)).servo_id == 1
+
+
+_STREAMING_HOST = """
+import sys
+import numpy as np
+from drivers.executor import Executor, ExecutorConfig
+from drivers.safety import SafetyLimits
+from drivers.servo_map import load_servo_map
+from drivers.session import connect
+from drivers.startup import engage, preflight
+
+smap = load_servo_map(sys.argv[1])
+with connect(smap, sys.argv[2]) as conn:
+    preflight(conn.group)
+    engage(conn.group, watchdog_s=0.1)
+    q0 = conn.group.read_feedback().position_rad
+    limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+    q1 = np.clip(q0 + 0.3, limits.lower_rad, limits.upper_rad)
+    print("STREAMING", flush=True)
+    Executor(conn.group, limits, ExecutorConfig(rate_hz=50.0)).run(
+        smap.joint_names, np.array([0.0, 20.0]), np.vstack([q0, q1]))
+"""
+
+
+def test_that_killing_the_host_process_mid_stream_trips_every_servo_watchdog(
+        threaded: PtyServer, servo_map: ServoMap) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from hil_tests.conftest import SERVO_MAP
+
+    assert threaded.device is not None
+    host = subprocess.Popen([sys.executable, "-c", _STREAMING_HOST, str(SERVO_MAP), threaded.device],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert host.stdout is not None and host.stdout.readline().strip() == "STREAMING"
+        time.sleep(0.3)  # a few cycles of motion
+        host.send_signal(signal.SIGKILL)  # no stop, no disarm: the host is simply gone
+        host.wait(5.0)
+    finally:
+        if host.poll() is None:
+            host.kill()
+    servos = [threaded.bus.servo(s.id) for s in servo_map.servos]
+    deadline = time.monotonic() + 3.0  # the emulator thread advances every 10 ms
+    while time.monotonic() < deadline and not all(s.watchdog_trips for s in servos):
+        time.sleep(0.02)
+    assert all(s.watchdog_trips == 1 for s in servos)
+    for s in servos:  # stopped where they were: goal = present, torque still on (holding)
+        assert s.torque_on and abs(s.get("goal_position") - s.get("present_position")) <= 3
