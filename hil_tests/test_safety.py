@@ -134,3 +134,23 @@ def test_that_bad_executor_settings_are_refused(field: dict) -> None:
 
     with pytest.raises(SafetyError):
         ExecutorConfig(**field)
+
+
+def test_that_a_fault_is_found_exactly_when_some_threshold_is_crossed_on_random_feedback() -> None:
+    rng = np.random.default_rng(3)
+    lim = _limits(max_tracking_error_rad=0.2, max_temperature_c=70, min_voltage_v=10, max_voltage_v=14.8,
+                  max_comm_failures=3)
+    for _ in range(2000):  # values scattered around every threshold, exact ties included
+        valid = rng.random(3) > 0.1
+        fb = _feedback(
+            q_present_rad=np.where(valid, rng.choice([0.0, 0.1, 0.2, 0.3], 3), np.nan), valid=valid,
+            hardware_error=rng.choice([0, 0, 0, 0x20, 0x80], 3),
+            temperature_c=np.where(valid, rng.choice([40.0, 70.0, 71.0], 3), np.nan),
+            voltage_v=np.where(valid, rng.choice([9.9, 10.0, 12.0, 14.8, 15.0], 3), np.nan),
+            consecutive_failures=rng.choice([0, 2, 3], 3))
+        v = fb["valid"]
+        crossed = bool(np.any(fb["consecutive_failures"] >= 3) or np.any(v & (fb["hardware_error"] != 0))
+                       or np.any(v & (np.abs(fb["q_present_rad"]) > 0.2))
+                       or np.any(v & (fb["temperature_c"] > 70))
+                       or np.any(v & ((fb["voltage_v"] < 10) | (fb["voltage_v"] > 14.8))))
+        assert bool(evaluate_feedback(lim, **fb)) == crossed
