@@ -125,3 +125,20 @@ def test_that_cut_and_merge_replans_only_the_illegal_segments_and_keeps_the_rest
     assert run.stats["replans"] == replans
     if merge_gap == 1:  # not merged: the legal waypoints between the two runs stay too
         assert any(np.array_equal(w, sunk[3]) for w in out) and any(np.array_equal(w, sunk[4]) for w in out)
+
+
+def test_that_refinement_with_replanned_segments_is_deterministic_for_a_seed(robot):
+    """Loose-to-strict levels and cut-and-merge replans give the same path for the same seed,
+    also when a partial-body attempt gives up: it stops after an iteration count, not a time,
+    so the full-body search after it starts from the same random state on any machine."""
+    from robot_rise.planning.bench_problems import load_problem_set
+    from robot_rise.planning.refine import PARTIAL_BODY_MAX_ITERATIONS
+
+    p = next(q for q in load_problem_set(robot) if q.name == "beam/library")  # prone beside the beam, frozen goal
+    checker = ValidityChecker(robot, "beam")
+    a = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, budget_s=60.0, seed=1))
+    b = RRTBlossomPlanner()(PlanningProblem(p.start, p.goal, checker, budget_s=60.0, seed=1))
+    assert a.solved and b.solved, (a.reason, b.reason)
+    assert a.stats["full_body_replans"] > 0  # the refinement replanned segments
+    assert a.stats["partial_body_iterations"] >= PARTIAL_BODY_MAX_ITERATIONS  # and a partial-body attempt gave up
+    np.testing.assert_array_equal(_states(a.path), _states(b.path))

@@ -121,6 +121,7 @@ def test_that_an_impossible_problem_fails_cleanly_within_its_budget(robot, tmp_p
     assert not res.solved and res.path is None
     assert res.status in (PlanStatus.TIMEOUT, PlanStatus.FAILED)
     assert "leg start -> goal" in res.reason and ("time budget" in res.reason or "exhausted" in res.reason)
+    assert "straight motion is first illegal" in res.reason and "obstacle collision" in res.reason  # which constraint
     assert elapsed < budget + 1.0
 
 
@@ -232,3 +233,55 @@ def test_that_blocked_branches_recede_dead_or_dormant_up_the_tree():
     assert tr.state[c] == EdgeState.DORMANT
     assert tr.state[a] == EdgeState.DORMANT  # nothing live below a, one branch only regressed
     assert tr.state[0] == EdgeState.LIVE  # the root is still a candidate
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_that_turning_over_is_found_when_the_straight_slerp_is_a_somersault(robot, flat, seed):
+    """Supine to prone with the head the other way: the slerp between the ends pitches the body
+    head over heels through the floor, the legal way is a roll ~90 degrees off it. With samples
+    only near the slerp (uniform_share=0) seeds 1 and 2 hit this 600-node limit (and ran out of
+    a 10 s budget without it); with the uniform share seeds 0-5 need at most 310 nodes in both
+    trees together. The node limit, not the clock, decides: the test does not depend on the
+    machine's speed."""
+    from robot_rise.planning.bench_problems import _lying_posture
+    from robot_rise.planning.refine import PlannerConfig
+    from robot_rise.planning.rrt_blossom import BlossomConfig
+
+    a = _lying_posture(robot, flat, "supine", (0.0, 0.0), 0.0)
+    b = _lying_posture(robot, flat, "prone", (0.0, 0.0), 0.0)
+    planner = RRTBlossomPlanner(PlannerConfig(blossom=BlossomConfig(max_nodes=600)))
+    res = planner(PlanningProblem(a, b, flat, budget_s=120.0, seed=seed))
+    assert res.solved, res.reason
+    v = MotionValidator(flat, PostureSpace.for_robot(robot), TEST_RESOLUTION_M)
+    assert not v.illegal_edges(_states(res.path)).any()
+
+
+def test_that_the_frozen_benchmark_problems_follow_the_papers_protocol_and_are_legal(robot):
+    """configs/bench/planning_problems.json: 20 supine, 20 prone, 10 + 10 lateral to library
+    connecting postures; beam, bed and table; every start and goal legal in its scene."""
+    import collections
+    import json
+
+    from robot_rise.paths import configs_dir
+    from robot_rise.planning.bench_problems import DEFAULT_PROBLEMS_FILE, PROBLEMS_FORMAT, load_problem_set
+
+    assert json.loads((configs_dir() / DEFAULT_PROBLEMS_FILE).read_text())["format"] == PROBLEMS_FORMAT
+    probs = load_problem_set(robot)
+    flat = [p for p in probs if p.pset == "flat60"]
+    assert collections.Counter(p.name.split("/")[0] for p in flat) == {"supine": 20, "prone": 20, "left": 10, "right": 10}
+    assert all(p.goal_source.startswith("library ") for p in flat)
+    assert {p.pset for p in probs} >= {"flat60", "beam", "low_bed", "table"}
+    checkers: dict[str, ValidityChecker] = {}
+    for p in probs:
+        c = checkers.setdefault(p.scene, ValidityChecker(robot, p.scene))
+        assert c.is_valid(p.start), (p.name, c.check(p.start).reasons())
+        assert c.is_valid(p.goal), (p.name, c.check(p.goal).reasons())
+
+
+def test_that_a_problem_file_of_another_format_is_refused(robot, tmp_path):
+    from robot_rise.planning.bench_problems import load_problem_set
+
+    f = tmp_path / "p.json"
+    f.write_text('{"format": "robot-rise/planning-problems@0", "robot": "op3", "problems": []}')
+    with pytest.raises(ValueError, match="planning-problems@1"):
+        load_problem_set(robot, f)

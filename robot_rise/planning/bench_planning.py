@@ -9,7 +9,9 @@ EDGE_RESOLUTION_M, installed into OMPL as its MotionValidator), same smoothing
   20 supine, 20 prone, 10 left + 10 right) to the connecting posture ``robot-rise rise``
   selects for each from the motion library; one planner seed (``--seed``) per problem;
 - beam, low_bed, table: each scene's lying posture to its library connecting posture and to the
-  crouch beyond the obstacle, ``--obstacle-seeds`` planner seeds each.
+  crouch beyond the obstacle, ``--obstacle-seeds`` planner seeds each;
+- turnover60 (``--sets turnover60``, not run by default): a stress set, the same 60 postures to
+  the connecting postures of a prone-only library (supine and lateral starts must turn over).
 
 Reported per planner and problem set: success rate, median and 95th-percentile time (planning
 + smoothing, wall clock), path length in the posture metric (of the smoothed path), minimum
@@ -99,14 +101,14 @@ def run_benchmark(
     obstacle_seeds: int = 5,
     on_row: Callable[[BenchRow], None] | None = None,
 ) -> list[BenchRow]:
-    """Every planner on every problem: flat60 problems once with ``seed``, the others with seeds 0..obstacle_seeds-1."""
+    """Every planner on every problem: flat60/turnover60 problems once with ``seed``, the others with seeds 0..obstacle_seeds-1."""
     robot = load_robot()
     checkers: dict[str, ValidityChecker] = {}
     rows: list[BenchRow] = []
     for name, planner in planners.items():
         for prob in problems:
             c = checkers.setdefault(prob.scene, ValidityChecker(robot, prob.scene))
-            for s in ([seed] if prob.pset == "flat60" else range(obstacle_seeds)):
+            for s in ([seed] if prob.pset in ("flat60", "turnover60") else range(obstacle_seeds)):
                 row = run_one(planner, name, prob, c, s, budget_s)
                 rows.append(row)
                 log.info("%s %s seed %d: %s %.2f s %s", name, prob.name, s, "solved" if row.solved else "FAILED", row.seconds, row.reason)
@@ -153,12 +155,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--problems", default=None, help="frozen problem file (default configs/bench/planning_problems.json)")
     ap.add_argument("--regenerate", action="store_true", help="sample and select the problems again and overwrite --problems")
     ap.add_argument("--sample-seed", type=int, default=1, help="lying-posture sampling seed for --regenerate")
+    ap.add_argument("--turnover-library", default=None, help="with --regenerate: the prone-only library directory of the turnover60 set (commit 8e60c43)")
     ap.add_argument("--out", default="out/bench_planning.json")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     robot = load_robot()
     if args.regenerate:
-        path = save_problem_set(build_problem_set(robot, seed=args.sample_seed), robot, args.problems, seed=args.sample_seed)
+        path = save_problem_set(build_problem_set(robot, seed=args.sample_seed, turnover_library=args.turnover_library), robot, args.problems, seed=args.sample_seed)
         log.info("wrote %s", path)
     problems = load_problem_set(robot, args.problems)
     sets = set(args.sets.split(","))

@@ -5,8 +5,10 @@ format ``robot-rise/planning-problems@1``, made by :func:`build_problem_set`): t
 lying postures of paper 000's protocol (seed 1: 20 supine, 20 prone, 10 left, 10 right) to the
 connecting posture ``robot-rise rise`` selects for each (library selection, below), and the
 beam, low-bed and table scenes, each with two problems: its lying posture to the library
-connecting posture selected in that scene, and to the crouch beyond the obstacle. The motion
-library changes; the frozen file keeps the benchmark's problems fixed (its digest is stored).
+connecting posture selected in that scene, and to the crouch beyond the obstacle; and a stress
+set ``turnover60``: the same 60 postures to the connecting postures of the prone-only library of
+commit 8e60c43 (supine and lateral starts must turn over). The motion library changes; the
+frozen file keeps the benchmark's problems fixed (its digest is stored).
 
 Library selection (what ``robot_rise.rise`` does, :func:`library_connecting_posture`): the
 nearest frames of the ``DEFAULT_CANDIDATES`` nearest motions among the library's lying frames
@@ -223,23 +225,36 @@ def library_connecting_posture(ctx: Any, start: Posture) -> tuple[Posture, str]:
     return sel.goal, f"library {sel.source}"
 
 
-def build_problem_set(robot: Robot, *, seed: int = 1, per_kind: dict[str, int] | None = None) -> list[FrozenProblem]:
+def build_problem_set(
+    robot: Robot, *, seed: int = 1, per_kind: dict[str, int] | None = None, turnover_library: str | os.PathLike[str] | None = None
+) -> list[FrozenProblem]:
     """Sample and select the issue-5 problems (minutes: settling the lying postures in MuJoCo).
 
     Args:
         seed: sampling seed of the lying postures (each kind uses it; paper protocol: 1).
         per_kind: lying postures per kind (default FLAT60_PER_KIND).
+        turnover_library: optional motion-library directory with prone motions only (the one
+            of commit 8e60c43: ``git archive 8e60c43 configs/motions/op3 | tar -x -C DIR``): the
+            same 60 lying postures to ITS connecting postures make the ``turnover60`` stress
+            set, where supine and lateral starts must turn over.
     """
+    from robot_rise.library import load_library
     from robot_rise.rise import RiseContext
     from robot_rise.sampling import sample_lying_postures
 
     out: list[FrozenProblem] = []
     ctx = RiseContext.build(robot, "flat")
+    tctx = RiseContext.build(robot, "flat", library=load_library(turnover_library)) if turnover_library is not None else None
+    turnover: list[FrozenProblem] = []
     for kind, n in (per_kind or FLAT60_PER_KIND).items():
         for i, start in enumerate(sample_lying_postures(robot, kind, n, seed).postures):  # type: ignore[arg-type]
             goal, source = library_connecting_posture(ctx, start)
             out.append(FrozenProblem(f"{kind}/{i}", "flat60", "flat", start, goal, source))
             log.info("flat60 %s/%d -> %s", kind, i, source)
+            if tctx is not None:
+                goal, source = library_connecting_posture(tctx, start)
+                turnover.append(FrozenProblem(f"turnover/{kind}/{i}", "turnover60", "flat", start, goal, f"{source} of {turnover_library}"))
+    out += turnover
     for crouch in obstacle_problems(robot):
         sctx = RiseContext.build(robot, crouch.scene, library=ctx.library)
         goal, source = library_connecting_posture(sctx, crouch.start)

@@ -44,6 +44,8 @@ __all__ = ["PlannerConfig", "RRTBlossomPlanner", "loose_to_strict_schedule", "li
 
 log = logging.getLogger(__name__)
 
+PARTIAL_BODY_MAX_ITERATIONS = 300  # ours; see PlannerConfig.partial_max_iterations and BENCHMARKS.md
+
 
 @dataclass(frozen=True)
 class PlannerConfig:
@@ -57,6 +59,10 @@ class PlannerConfig:
         merge_gap: illegal runs fewer than this many waypoints apart are replanned as one.
         partial_body: try partial-body replanning for self/obstacle collisions first.
         partial_share: share of the remaining budget a partial-body attempt may use.
+        partial_max_iterations: RRT-blossom iterations of a partial-body attempt before the
+            segment is replanned full-body (an attempt that cannot succeed, e.g. the head alone
+            against a beam, otherwise spends ``partial_share`` of the budget; iterations rather
+            than seconds keep the following full-body search deterministic for a seed).
         max_repair_rounds: check-and-repair rounds per refinement iteration.
     """
 
@@ -67,6 +73,7 @@ class PlannerConfig:
     merge_gap: int = 2
     partial_body: bool = True
     partial_share: float = 0.3
+    partial_max_iterations: int = PARTIAL_BODY_MAX_ITERATIONS
     max_repair_rounds: int = 4
 
 
@@ -139,6 +146,14 @@ def _runs(bad: np.ndarray, gap: int) -> list[tuple[int, int]]:
         else:
             runs.append([int(e), int(e) + 1])
     return [(a, b) for a, b in runs]
+
+
+def _blocked(v: MotionValidator, a: np.ndarray, b: np.ndarray) -> str:
+    """What blocks the straight motion a -> b (the constraint the search had to get round)."""
+    seg = v.first_invalid(a, b)
+    if seg.valid or seg.report is None:
+        return "the straight motion is legal"
+    return f"the straight motion is first illegal at {100 * (seg.first_invalid_s or 0.0):.0f}% of the way: {'; '.join(seg.report.reasons())}"
 
 
 def _describe(lo: Looseness) -> str:
@@ -224,7 +239,7 @@ class RRTBlossomPlanner:
         run.bump("checks", v0.n_checks)
         if out.path is None:
             status = PlanStatus.TIMEOUT if out.timed_out else PlanStatus.FAILED
-            raise _Failure(status, f"{leg}, refinement iteration 1/{len(schedule)} ({_describe(schedule[0])}): RRT-blossom found no path: {out.reason}")
+            raise _Failure(status, f"{leg}, refinement iteration 1/{len(schedule)} ({_describe(schedule[0])}): RRT-blossom found no path: {out.reason}; {_blocked(v0, a, b)}")
         path = out.path
         for k, (lo, v) in enumerate(zip(schedule, validators)):
             if k == 0:
@@ -263,8 +278,9 @@ class RRTBlossomPlanner:
             mask = np.array([any(j in run.robot.limbs[lb] for lb in limbs) for j in run.robot.joint_names])
             now = time.monotonic()
             dl = min(run.deadline, now + cfg.partial_share * max(0.0, run.deadline - now))
-            out = rrt_blossom(a, b, v, run.rng, dl, config=cfg.blossom, free_joints=mask)
+            out = rrt_blossom(a, b, v, run.rng, dl, config=cfg.blossom, free_joints=mask, max_iterations=cfg.partial_max_iterations)
             self._count(run, out.stats)
+            run.bump("partial_body_iterations", out.stats.get("iterations", 0))
             if out.path is not None:
                 run.bump("partial_body_replans")
                 log.debug("%s: partial-body (%s) replanned (%s)", where, ", ".join(limbs), what)
@@ -273,7 +289,7 @@ class RRTBlossomPlanner:
         self._count(run, out.stats)
         if out.path is None:
             status = PlanStatus.TIMEOUT if out.timed_out else PlanStatus.FAILED
-            raise _Failure(status, f"{where} ({what}) could not be replanned: {out.reason}")
+            raise _Failure(status, f"{where} ({what}) could not be replanned: {out.reason}; {_blocked(v, a, b)}")
         run.bump("full_body_replans")
         log.debug("%s: full-body replanned (%s)", where, what)
         return out.path

@@ -47,9 +47,22 @@ from robot_rise.constants import (
 )
 from robot_rise.planning.motion_validator import MotionValidator
 
-__all__ = ["BlossomConfig", "BlossomOutcome", "EdgeState", "rrt_blossom"]
+__all__ = ["BlossomConfig", "BlossomOutcome", "EdgeState", "rrt_blossom", "uniform_quaternion"]
 
 log = logging.getLogger(__name__)
+
+# Ours (not in paper 000, whose samples are not specified): a share of samples from the whole
+# space keeps the search probabilistically complete in root orientation (see BlossomConfig).
+UNIFORM_SAMPLE_SHARE = 0.5  # measured: 0 / 0.2 / 0.5 / 0.6 on hard supine-to-prone problems, see BENCHMARKS.md
+UNIFORM_BOX_XY_M = 0.3  # root box beyond the two ends in x, y [m] (the OMPL adapter's bounds)
+UNIFORM_BOX_UP_M = 0.3  # and above them [m]: room for the root of a 0.51 m robot turning over
+
+
+def uniform_quaternion(rng: np.random.Generator) -> np.ndarray:
+    """A uniformly distributed unit quaternion (w, x, y, z) (Shoemake 1992), shape (4,)."""
+    u1, u2, u3 = rng.random(3)
+    a, b = np.sqrt(1.0 - u1), np.sqrt(u1)
+    return np.array([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3), b * np.cos(2 * np.pi * u3)])
 
 
 class EdgeState:
@@ -80,6 +93,14 @@ class BlossomConfig:
         max_nodes: per tree; reaching it ends the search with a failure.
         sample_orientation_rad: random root rotation around the start-goal slerp in samples [rad].
         sample_position_m: random root offset around the start-goal line in samples [m].
+        uniform_share: probability that a (non-goal) sample is drawn from the whole space:
+            uniform root orientation on SO(3), root position uniform in the box around the two
+            ends (``uniform_box_m``), joints uniform within their limits. Without it the
+            samples stay near the start-goal slerp; when that slerp is a somersault (supine to
+            prone with the head turned round) the legal way, a roll about the body's long
+            axis, lies ~90 degrees off it and is never sampled: the search ran out of time.
+        uniform_box_m: half-extent of that box beyond the two ends' root positions in x and y,
+            and up (z) [m]; downward it extends by ``sample_position_m / 4``.
     """
 
     step_joint_rad: float = BLOSSOM_STEP_JOINT_RAD
@@ -95,6 +116,8 @@ class BlossomConfig:
     max_nodes: int = 20000
     sample_orientation_rad: float = 0.8
     sample_position_m: float = 0.1
+    uniform_share: float = UNIFORM_SAMPLE_SHARE
+    uniform_box_m: tuple[float, float] = (UNIFORM_BOX_XY_M, UNIFORM_BOX_UP_M)
 
 
 @dataclass(frozen=True)
@@ -175,6 +198,7 @@ def rrt_blossom(
     *,
     config: BlossomConfig = BlossomConfig(),
     free_joints: np.ndarray | None = None,
+    max_iterations: int | None = None,
 ) -> BlossomOutcome:
     """Search a legal path from state ``a`` to state ``b`` (both assumed legal).
 
@@ -186,6 +210,9 @@ def rrt_blossom(
         config: knobs.
         free_joints: bool mask shape (n,) of joints that explore (partial-body planning); None
             for full-body planning (root and all joints).
+        max_iterations: give up after this many iterations (None: only the deadline and the
+            node limit stop the search). Unlike the deadline, it does not depend on the
+            machine's speed, so what happens after a search that gave up stays deterministic.
 
     Returns:
         BlossomOutcome with the path (first row ``a``, last ``b``) or the reason.
@@ -216,9 +243,19 @@ def rrt_blossom(
     start_tree = ta
     span = np.where(free, cfg.span_rad, 0.0)
 
+    lo_box = np.minimum(a[:3], b[:3]) - np.array([cfg.uniform_box_m[0], cfg.uniform_box_m[0], 0.25 * cfg.sample_position_m])
+    hi_box = np.maximum(a[:3], b[:3]) + np.array([cfg.uniform_box_m[0], cfg.uniform_box_m[0], cfg.uniform_box_m[1]])
+
     def sample(toward: np.ndarray) -> np.ndarray:
         if rng.random() < cfg.goal_bias:
             return toward.copy()
+        if rng.random() < cfg.uniform_share:
+            x = np.concatenate([rng.uniform(lo_box, hi_box), uniform_quaternion(rng), rng.uniform(space.lower, space.upper)])
+            if partial:  # partial-body: only the free joints explore
+                base = space.interpolate(a, b, np.array([rng.random()]))[0]
+                x[:7] = base[:7]
+                x[7:] = np.where(free, x[7:], base[7:])
+            return x
         s = rng.random()
         base = space.interpolate(a, b, np.array([s]))[0]
         x = base.copy()
@@ -298,6 +335,8 @@ def rrt_blossom(
                 False,
                 stats((ta, tb), it),
             )
+        if max_iterations is not None and it >= max_iterations:
+            return BlossomOutcome(None, f"iteration limit {max_iterations} reached", False, stats((ta, tb), it))
         if ta.n >= ta.cap - cfg.n_children - 1 or tb.n >= tb.cap - cfg.n_children - 1:
             return BlossomOutcome(None, f"node limit {cfg.max_nodes} reached", False, stats((ta, tb), it))
         it += 1
