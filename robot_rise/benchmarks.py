@@ -16,7 +16,7 @@ from robot_rise.model import Robot
 from robot_rise.sampling import sample_lying_postures
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["ValidityBenchmark", "bench_validity"]
+__all__ = ["ValidityBenchmark", "bench_validity", "bench_environments", "environment_postures", "environments_table", "ENVIRONMENT_SCENES"]
 
 
 @dataclass(frozen=True)
@@ -192,3 +192,115 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
                 row[f"robust: {label}"] = sum(c.robust[label] for c in tested) / len(tested)
         out[key] = row
     return out
+
+
+# --- environments of paper 000 section 5.2 (issue 6) ---------------------------------------------
+
+ENVIRONMENT_SCENES: tuple[str, ...] = ("beam", "low_bed", "table", "icy", "soft", "slope")
+"""The scenes of paper 000 section 5.2 (configs/scenes/)."""
+
+ENVIRONMENT_PLACEMENTS_M: dict[str, tuple[tuple[float, float], ...]] = {
+    # under the table (x, y) = (0, 0), and lying half out from under it past each edge
+    # (paper 000 Fig. 11 lies under a table; the table top spans x +-0.30, y +-0.25)
+    "table": ((0.0, 0.0), (0.40, 0.0), (0.0, 0.35), (-0.40, 0.0)),
+}
+"""Where postures of a scene are put (root x, y), in turn; scenes not listed are sampled and settled
+at the origin, where each scene has its feature: the beam under the face of a robot lying with its
+head toward +x, the robot on the low bed's edge (legs or head over it depending on the yaw), ice,
+soft ground, the slope. Postures for a listed scene are settled on flat ground, then moved there;
+one that collides with the scene at its place is tried at the next place."""
+
+
+def environment_postures(robot: Robot, scene: str, n: int, seed: int) -> list[tuple[str, object]]:
+    """``n`` lying postures placed for ``scene`` (kinds cycle supine, prone, left, right): (kind, posture)."""
+    places = ENVIRONMENT_PLACEMENTS_M.get(scene)
+    if places is None:
+        sample = sample_lying_postures(robot, "any", n, seed, scene=scene)
+        return list(zip(sample.kinds, sample.postures))
+    checker = ValidityChecker(robot, scene)
+    flat = sample_lying_postures(robot, "any", 4 * n, seed)
+    out: list[tuple[str, object]] = []
+    for i, (kind, p) in enumerate(zip(flat.kinds, flat.postures)):
+        for j in range(len(places)):
+            x, y = places[(len(out) + j) % len(places)]
+            moved = p.with_root(np.array([x, y, p.root_pos[2]]))
+            if checker.is_valid(moved):
+                out.append((kind, moved))
+                break
+        if len(out) == n:
+            break
+    return out
+
+
+def bench_environments(
+    robot: Robot,
+    *,
+    scenes: tuple[str, ...] = ENVIRONMENT_SCENES,
+    n: int = 4,
+    seed: int = 0,
+    budget_s: float = 15.0,
+    progress=None,
+) -> dict[str, list[RiseCase]]:
+    """Rise from ``n`` postures placed in each scene (:func:`environment_postures`).
+
+    Returns:
+        per scene, one :class:`RiseCase` per posture (robustness replays skipped: ``rise`` itself
+        checks its own model error).
+    """
+    out: dict[str, list[RiseCase]] = {}
+    total = n * len(scenes)
+    done = 0
+    for scene in scenes:
+        cases = []
+        for i, (kind, p) in enumerate(environment_postures(robot, scene, n, seed)):
+            cases.append(_rise_case((str(robot.directory), f"{scene}_{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, False)))
+            done += 1
+            if progress:
+                progress(done, total)
+        out[scene] = cases
+    return out
+
+
+def environments_table(results: dict[str, list[RiseCase]]) -> str:
+    """The BENCHMARKS.md table of :func:`bench_environments` (markdown), then one line per failure."""
+    lines = ["| scene | postures | risen | median wall time [s] | reasons of failures |", "| --- | ---: | ---: | ---: | --- |"]
+    for scene, cases in results.items():
+        ok = sum(c.proven for c in cases)
+        wall = float(np.median([c.wall_s for c in cases])) if cases else float("nan")
+        fails = "; ".join(f"{c.kind}: {c.reason[:120]}" for c in cases if not c.proven) or "-"
+        lines.append(f"| {scene} | {len(cases)} | {ok} | {wall:.1f} | {fails} |")
+    lines.append("")
+    lines += [f"failed {c.name}: {c.reason}" for cases in results.values() for c in cases if not c.proven]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m robot_rise.benchmarks environments [--scene S ...] [--n N] [--seed S] [--json]``."""
+    import argparse
+    import json
+    import logging
+
+    from robot_rise.model import load_robot
+
+    p = argparse.ArgumentParser(prog="python -m robot_rise.benchmarks", description="benchmarks not in `robot-rise bench`")
+    sub = p.add_subparsers(dest="bench", required=True)
+    e = sub.add_parser("environments", help="rise from postures placed in each scene of paper 000 section 5.2")
+    e.add_argument("--scene", action="append", choices=ENVIRONMENT_SCENES, help="scene(s) (default: all six)")
+    e.add_argument("--n", type=int, default=4, help="postures per scene, kinds cycling supine, prone, left, right (default: 4)")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--budget", type=float, default=15.0, help="planning budget per candidate [s] (default: 15)")
+    e.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3-class robot)")
+    e.add_argument("--json", action="store_true", help="print every case as JSON")
+    args = p.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    robot = load_robot(args.robot)
+    results = bench_environments(robot, scenes=tuple(args.scene or ENVIRONMENT_SCENES), n=args.n, seed=args.seed, budget_s=args.budget)
+    if args.json:
+        print(json.dumps({s: [c.__dict__ for c in cases] for s, cases in results.items()}, indent=1, default=str))
+    else:
+        print(environments_table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

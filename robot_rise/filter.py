@@ -15,7 +15,10 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
    limb blocked), and finally the standing judge;
 4. reshape: slow the offending windows down (time scaling, 003 eq. 2.9-2.10's comfort control
    does this by lowering speed where torque exceeds the limit); when the judge fails with no
-   local violation, slow the motion after the join;
+   local violation, slow the motion after the join; on sloped ground (paper 000 section 5.2's
+   10 deg slope) the library's flat-ground stance is first turned to the slope: from the moment
+   the robot is on its feet the ankles take up the ground's tilt in the heading the robot
+   really stands in (:func:`slope_ankle_offsets`), so the body above them stays vertical;
 5. iterate until everything passes or ``max_iterations`` is reached, then say why not.
 
 The output trajectory holds the commanded targets (not the plan) and a report proving them.
@@ -25,14 +28,16 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import mujoco
 import numpy as np
 
-from robot_rise.judge import StandVerdict, judge
+from robot_rise.judge import StandVerdict, judge, supported_on_feet, world_contact
 from robot_rise.model import Robot
 from robot_rise.paths import scene_path
 from robot_rise.posture import Posture
@@ -55,9 +60,19 @@ __all__ = [
     "ModelError",
     "ROBUSTNESS_CHECKS",
     "stands_under",
+    "describe_fall",
+    "ground_tilt_vector",
+    "ankle_joints",
+    "slope_ankle_offsets",
+    "SLOPE_MIN_RAD",
 ]
 
 log = logging.getLogger(__name__)
+
+# Slope handling (paper 000 section 5.2, rising on a slope; ours: the stance is turned to the slope).
+SLOPE_MIN_RAD = math.radians(1.0)  # ground tilts below this are treated as level
+SLOPE_RAMP_S = 0.3  # the ankle offsets are ramped in over this long before the robot is on its feet [s]
+SLOPE_MIN_FEET_S = 0.2  # "on its feet": only the feet touch the ground for at least this long [s]
 
 
 @dataclass(frozen=True)
@@ -226,6 +241,179 @@ def scene_digest(scene: str | os.PathLike[str] | None) -> str:
     return hashlib.sha256(scene_path(scene).read_bytes()).hexdigest()
 
 
+def ground_tilt_vector(model: mujoco.MjModel, ground_geoms: np.ndarray) -> np.ndarray:
+    """Rotation vector (world) [rad] that turns the vertical into the ground's normal, shape (3,).
+
+    Its direction is the axis the ground is tilted about, its length the tilt angle; zero for
+    level ground. The ground is the first plane among ``ground_geoms`` (world geoms, so their
+    ``geom_quat`` is their world orientation); zero when there is none.
+    """
+    for g in np.asarray(ground_geoms, dtype=int):
+        if int(model.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_PLANE):
+            continue
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, model.geom_quat[g])
+        n = mat.reshape(3, 3)[:, 2]
+        axis = np.cross([0.0, 0.0, 1.0], n)
+        s = float(np.linalg.norm(axis))
+        if s < 1e-12:
+            return np.zeros(3)
+        return axis / s * math.atan2(s, float(n[2]))
+    return np.zeros(3)
+
+
+def ankle_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The two hinge joints nearest each sole (the ankle), with their axes in the robot's frame.
+
+    Found from the kinematic tree (the sole sites' bodies and their parents), so a retargeted
+    robot needs no names. Axes are those of the ``stand`` keyframe at zero yaw [unit vectors],
+    i.e. in the frame of a robot standing facing +x.
+    """
+    d = mujoco.MjData(model)
+    idx_root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
+    qa = int(model.jnt_qposadr[int(model.body_jntadr[idx_root])])
+    d.qpos[qa : qa + 7] = [0.0, 0.0, robot.stand_qpos[2], 1.0, 0.0, 0.0, 0.0]
+    for name, value in zip(robot.joint_names, robot.stand_qpos[7:]):
+        d.qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)]] = value
+    mujoco.mj_kinematics(model, d)
+    out: dict[str, np.ndarray] = {}
+    names = set(robot.joint_names)
+    for site in robot.sole_sites:
+        body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)])
+        found = 0
+        while body > 0 and found < 2:
+            for j in range(int(model.body_jntadr[body]), int(model.body_jntadr[body]) + int(model.body_jntnum[body])):
+                jname = model.joint(j).name
+                if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) and jname in names:
+                    out[jname] = d.xaxis[j].copy()
+                    found += 1
+            body = int(model.body_parentid[body])
+    return out
+
+
+def slope_ankle_offsets(axes: dict[str, np.ndarray], tilt_world: np.ndarray, heading_rad: float) -> dict[str, float]:
+    """Ankle angle offsets [rad] that keep the body vertical with the feet flat on tilted ground.
+
+    A foot flat on ground tilted by the rotation vector ``s`` (world) turns the leg above it by
+    ``s`` too; an ankle joint of axis ``a`` turned by ``theta`` turns the leg by ``-theta a``
+    relative to the foot, so ``theta = s_h . a`` per ankle joint undoes the tilt (to first order;
+    10 deg is 0.17 rad), with ``s_h`` the tilt in the frame of the robot facing ``heading_rad``.
+
+    Args:
+        axes: ankle joint axes in the robot's frame (:func:`ankle_joints`).
+        tilt_world: ground tilt rotation vector [rad] (:func:`ground_tilt_vector`), shape (3,).
+        heading_rad: the standing robot's yaw (its +x direction) [rad].
+    """
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    tw = np.asarray(tilt_world, dtype=float)
+    s_h = np.array([c * tw[0] + s * tw[1], -s * tw[0] + c * tw[1], tw[2]])
+    return {name: float(s_h @ a) for name, a in axes.items()}
+
+
+def _feet_from(rec: Recording, until_s: float) -> int | None:
+    """First sample (at most ``until_s``) from which only the feet touch the ground for SLOPE_MIN_FEET_S."""
+    if len(rec.t) < 2:
+        return None
+    need = max(1, int(round(SLOPE_MIN_FEET_S / float(rec.t[1] - rec.t[0]))))
+    on = supported_on_feet(rec).astype(int)
+    runs = np.convolve(on, np.ones(need, dtype=int), mode="valid") == need
+    ks = np.flatnonzero(runs & (rec.t[: runs.size] <= until_s))
+    return int(ks[0]) if ks.size else None
+
+
+def _heading(root_quat_wxyz: np.ndarray) -> float:
+    """Yaw of the root's +x axis on the ground [rad]."""
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(root_quat_wxyz, dtype=float))
+    return math.atan2(mat[3], mat[0])
+
+
+def _turn_stance_to_slope(
+    robot: Robot, tr: Trajectory, rec: Recording, axes: dict[str, np.ndarray], tilt_world: np.ndarray
+) -> tuple[Trajectory, dict[str, Any]] | None:
+    """``tr`` with the ankle offsets of :func:`slope_ankle_offsets` from when the robot is on its feet
+    (ramped in over SLOPE_RAMP_S before), in the heading it stood in on ``rec``; None if it never was."""
+    k = _feet_from(rec, tr.duration_s)
+    if k is None:
+        return None
+    t_feet = float(rec.t[k])
+    heading = _heading(rec.root_pose[k, 3:])
+    offsets = slope_ankle_offsets(axes, tilt_world, heading)
+    w = np.clip((tr.t - (t_feet - SLOPE_RAMP_S)) / SLOPE_RAMP_S, 0.0, 1.0)
+    q = tr.q.copy()
+    for name, off in offsets.items():
+        j = tr.joint_names.index(name)
+        r = robot.joint_index(name)
+        q[:, j] = np.clip(q[:, j] + w * off, robot.joint_lower[r], robot.joint_upper[r])
+    info = {"on_feet_from_s": t_feet, "heading_rad": heading, "tilt_rad": float(np.linalg.norm(tilt_world)), "ankle_offsets_rad": offsets}
+    return Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report, tr.root), info
+
+
+def _segment_at(trajectory: Trajectory, t_s: float) -> str:
+    """Which part of a rise trajectory ``t_s`` falls in: the planned path or the library motion."""
+    rep = trajectory.report
+    rows = rep.get("plan_rows")
+    if not isinstance(rows, int) or not 0 < rows < len(trajectory.t):
+        return f"at {t_s:.2f} s"
+    join = float(trajectory.t[rows])
+    if t_s < float(trajectory.t[rows - 1]):
+        return f"at {t_s:.2f} s, in the planned path (ends {trajectory.t[rows - 1]:.2f} s)"
+    if t_s < join:
+        return f"at {t_s:.2f} s, in the blend into {rep.get('motion', 'the library motion')}"
+    if t_s > trajectory.duration_s:
+        return f"at {t_s:.2f} s, in the final hold"
+    return f"at {t_s:.2f} s, {t_s - join:.2f} s into {rep.get('motion', 'the library motion')} (from frame {rep.get('connecting_frame', '?')})"
+
+
+def describe_fall(rec: Recording, trajectory: Trajectory, violations: list[Violation]) -> str:
+    """Why a played motion did not end standing: when, in which segment, and the constraint broken.
+
+    "on its feet" = only the feet touch the ground (the judge's condition). Reported: whether and
+    when the robot got onto its feet, when it left them, the highest torso reached, and the
+    violation (balance = ZMP outside the support polygon, paper 003 eq. 2.13-2.14; divergence =
+    a joint that could not follow its target; torque) nearest before that moment.
+    """
+    if len(rec.t) == 0:
+        return "nothing played"
+    h = rec.torso_height_m / rec.stand_height_m
+    k_hi = int(np.argmax(h))
+    dt = float(rec.t[1] - rec.t[0]) if len(rec.t) > 1 else 0.01
+    need = max(1, int(round(SLOPE_MIN_FEET_S / dt)))
+    stretches = [(a, b) for a, b in _windows(supported_on_feet(rec), rec.t) if b - a + 1 >= need]
+    parts: list[str] = []
+    t_ref: float
+    if not stretches:
+        t_ref = float(rec.t[k_hi])
+        parts.append(
+            f"never on its feet alone for {SLOPE_MIN_FEET_S:.1f} s; highest torso {100 * h[k_hi]:.0f} % of stand height "
+            + _segment_at(trajectory, t_ref)
+        )
+    else:
+        first, last = stretches[-1]
+        t_ref = float(rec.t[last])
+        after = min(last + 1, len(rec.t) - 1)
+        touching = [rec.robot_geom_names[g] for g in np.flatnonzero(world_contact(rec)[after])]
+        parts.append(
+            f"on its feet {_segment_at(trajectory, float(rec.t[first]))} until {rec.t[last]:.2f} s (torso tilt then "
+            f"{np.degrees(rec.tilt_rad[last]):.0f} deg, highest torso {100 * h[k_hi]:.0f} % of stand height), then "
+            + (
+                ("touching the world with " + ", ".join(touching) if touching else "in the air (nothing touches)")
+                if last + 1 < len(rec.t)
+                else "the recording ended"
+            )
+        )
+    before = [v for v in violations if v.t_start_s <= t_ref + 0.05]
+    if before:
+        v = max(before, key=lambda v: (v.t_end_s, v.kind == "balance"))
+        what = {
+            "balance": f"ZMP outside the support polygon by {-1000 * v.value:.0f} mm",
+            "divergence": f"joints could not follow their targets ({', '.join(v.joints[:4])}, error {v.value:.2f} rad)",
+            "torque": f"torque {v.value:.2f} of the envelope ({', '.join(v.joints[:4])})",
+        }.get(v.kind, v.describe())
+        parts.append(f"last violation: {what} {v.t_start_s:.2f}-{v.t_end_s:.2f} s")
+    return "; ".join(parts)
+
+
 def prove(
     robot: Robot,
     trajectory: Trajectory,
@@ -255,14 +443,18 @@ def prove(
     self_collision = bool(np.max(rec.self_penetration_m, initial=0.0) > settings.self_penetration_tolerance_m)
     proven = bool(verdict.standing and within and not self_collision)
     problems = []
+    diagnosis = ""
     if not verdict.standing:
-        problems.append(f"not standing: {verdict.reason}")
+        saturation = min(servo_spec(sv.model).saturation_error_rad() for sv in robot.servos)
+        diagnosis = describe_fall(rec, trajectory, find_violations(rec, settings, saturation_rad=saturation))
+        problems.append(f"not standing: {verdict.reason} ({diagnosis})")
     if not within:
         worst = rec.joint_names[int(np.argmax(peak_per_joint))]
         problems.append(f"torque {verdict.peak_envelope_ratio:.2f} of the envelope (limit {limit:.2f}) at {worst}")
     if self_collision:
+        k_self = int(np.argmax(rec.self_penetration_m))
         problems.append(
-            f"self-collision {1000 * float(np.max(rec.self_penetration_m)):.1f} mm deep: "
+            f"self-collision {1000 * float(np.max(rec.self_penetration_m)):.1f} mm deep {_segment_at(trajectory, float(rec.t[k_self]))}: "
             + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3])
         )
     report = {
@@ -285,6 +477,7 @@ def prove(
         "self_touch": bool(verdict.self_collision),
         "max_self_penetration_m": float(np.max(rec.self_penetration_m, initial=0.0)),
         "stood_from_s": float(verdict.stood_from_s) if np.isfinite(verdict.stood_from_s) else None,
+        **({"diagnosis": diagnosis} if diagnosis else {}),
     }
     return rec, verdict, report
 
@@ -321,8 +514,21 @@ def dynamics_filter(
     best: tuple[Trajectory, Recording, StandVerdict, dict[str, Any]] | None = None  # best proven so far
     last: tuple[Trajectory, Recording, StandVerdict, dict[str, Any]] | None = None
     soft = 0
+    tilt = ground_tilt_vector(player.model, player.index.ground_geoms)
+    slope_pending = float(np.linalg.norm(tilt)) >= SLOPE_MIN_RAD
+    slope_info: dict[str, Any] | None = None
     for it in range(1, settings.max_iterations + 1):
         rec, verdict, report = prove(robot, current, scene=scene, settings=settings, player=player, start=start)
+        if slope_pending and not report["proven"]:
+            # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
+            slope_pending = False
+            turned = _turn_stance_to_slope(robot, current, rec, ankle_joints(robot, player.model), tilt)
+            if turned is not None:
+                history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, ("stance turned to the slope",)))
+                log.info("filter iteration %d: stance turned to the slope: %s", it, turned[1])
+                last = (current, rec, verdict, report)
+                current, slope_info = turned
+                continue
         violations = [v for v in find_violations(rec, settings, saturation_rad=saturation) if v.t_start_s <= current.duration_s]
         history.append(
             FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, tuple(v.describe() for v in violations))
@@ -360,6 +566,7 @@ def dynamics_filter(
     reason = "" if ok else "; ".join(report["problems"]) + (f" (after {len(history)} filter iterations)")
     full_report = {
         **report,
+        **({"slope_stance": slope_info} if slope_info is not None else {}),
         "filter_iterations": len(history),
         "filter_history": [
             {"iteration": h.iteration, "duration_s": h.duration_s, "peak_torque_ratio": h.peak_envelope_ratio, "standing": h.standing, "violations": list(h.violations)}

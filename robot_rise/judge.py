@@ -1,8 +1,9 @@
 """The standing judge and the balance measures (ZMP, support polygon).
 
 Standing (issue 4, numbers in ``robot_rise/constants.py``): torso tilt <= 15 deg from vertical,
-torso height >= 90 % of the ``stand`` keyframe's, only the feet touch the ground, all of it held
-for 2 s with the velocities settled. The judge reads a :class:`robot_rise.sim.Recording`.
+torso height >= 90 % of the ``stand`` keyframe's, only the feet touch the world (the ground, or
+an obstacle stood on such as a low bed: paper 000 section 5.2), all of it held for 2 s with the
+velocities settled. The judge reads a :class:`robot_rise.sim.Recording`.
 
 ZMP: paper 003 (Oshita 2003) section 2, eq. (2.11)-(2.12), written there with y up; here z is up:
 
@@ -31,6 +32,8 @@ __all__ = [
     "StandVerdict",
     "judge",
     "zmp_point_mass",
+    "supported_on_feet",
+    "world_contact",
     "zmp_point_mass_many",
     "support_margin",
     "convex_hull_2d",
@@ -228,9 +231,25 @@ class StandVerdict:
         )
 
 
+def world_contact(rec: Recording) -> np.ndarray:
+    """Which robot geom rests on the world (the ground or a scene obstacle) per sample, shape (K, G)."""
+    if rec.obstacle_touch is None:
+        return rec.ground_contact
+    return rec.ground_contact | rec.obstacle_touch
+
+
+def supported_on_feet(rec: Recording) -> np.ndarray:
+    """Only the feet touch the world, the ground or an obstacle (standing on a low bed counts;
+    lying across a beam with the feet on the floor does not), shape (K,)."""
+    world = world_contact(rec)
+    others = np.ones(world.shape[1], dtype=bool)
+    others[rec.foot_geoms] = False
+    return world.any(axis=1) & ~world[:, others].any(axis=1)
+
+
 def standing_mask(rec: Recording, *, max_tilt_rad: float = STAND_MAX_TILT_RAD, min_height_fraction: float = STAND_MIN_HEIGHT_FRACTION) -> np.ndarray:
     """Per-sample standing condition (posture, contacts and settled velocities), shape (K,)."""
-    posture_ok = (rec.tilt_rad <= max_tilt_rad) & (rec.torso_height_m >= min_height_fraction * rec.stand_height_m) & rec.on_feet
+    posture_ok = (rec.tilt_rad <= max_tilt_rad) & (rec.torso_height_m >= min_height_fraction * rec.stand_height_m) & supported_on_feet(rec)
     settled = (
         (np.linalg.norm(rec.root_vel[:, :3], axis=1) <= SETTLED_ROOT_SPEED_M_S)
         & (np.linalg.norm(rec.root_vel[:, 3:], axis=1) <= SETTLED_ROOT_RATE_RAD_S)
@@ -272,8 +291,9 @@ def judge(
             reason = f"torso tilted {np.degrees(rec.tilt_rad[last]):.0f} deg"
         elif rec.torso_height_m[last] < min_height_fraction * rec.stand_height_m:
             reason = f"torso at {100 * rec.torso_height_m[last] / rec.stand_height_m:.0f} % of stand height"
-        elif not rec.on_feet[last]:
-            others = [g for g in rec.touching(last) if rec.robot_geom_names.index(g) not in set(rec.foot_geoms.tolist())]
+        elif not supported_on_feet(rec)[last]:
+            feet = set(rec.foot_geoms.tolist())
+            others = [rec.robot_geom_names[g] for g in np.flatnonzero(world_contact(rec)[last]) if g not in feet]
             reason = f"not only feet on the ground ({', '.join(others) or 'nothing touches'})"
         elif np.isnan(stood_from):
             reason = "not settled at the end"

@@ -22,13 +22,13 @@ from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import ROBUSTNESS_CHECKS, FilterResult, FilterSettings, ModelError, dynamics_filter, join_with_blend, prove, stands_under
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
-from robot_rise.placement import place_near
+from robot_rise.placement import MotionRoom, motion_room, place_near
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import Posture, validate_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
-from robot_rise.validity import ValidityChecker
+from robot_rise.validity import Looseness, ValidityChecker
 
 __all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture", "lying_frames"]
 
@@ -39,6 +39,7 @@ LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is th
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
+OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,11 @@ class RiseAttempt:
     filter_reason: str = ""
     seconds: dict[str, float] = field(default_factory=dict)
     robust: bool = False
+    blocked: str = ""  # set when the motion cannot end standing where it would (placement.room_to_stand)
 
     def describe(self) -> str:
+        if self.blocked:
+            return f"{self.motion}@{self.frame}: {self.blocked}"
         if not self.planned:
             return f"{self.motion}@{self.frame}: no path ({self.plan_reason})"
         if not self.proven:
@@ -87,6 +91,15 @@ class RiseContext:
     library: MotionLibrary
     index: FrameIndex
     tree: KMeansTree
+    _obstacle_checker: ValidityChecker | None = field(default=None, repr=False)
+
+    def obstacle_checker(self) -> ValidityChecker | None:
+        """The scene's obstacles without its ground (placement.motion_room), None without obstacles."""
+        if self.checker.index.obstacle_geoms.size == 0:
+            return None
+        if self._obstacle_checker is None:
+            self._obstacle_checker = ValidityChecker(self.robot, self.scene, looseness=Looseness(ground_drop_m=OBSTACLES_ONLY_GROUND_DROP_M))
+        return self._obstacle_checker
 
     @classmethod
     def build(cls, robot: Robot, scene: str | os.PathLike[str] | None = "flat", library: MotionLibrary | None = None) -> RiseContext:
@@ -159,6 +172,17 @@ def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connect
     return place_near(goal, start, checker)
 
 
+def _motion_room(context: RiseContext, connection: Connection, goal: Posture) -> MotionRoom:
+    """placement.motion_room for a candidate (always ok in a scene without obstacles)."""
+    checker = context.obstacle_checker()
+    motion = context.library.get(connection.motion)
+    tr = motion.trajectory
+    if checker is None or tr.root is None:
+        return MotionRoom(True, connection.motion)
+    cols = [tr.joint_names.index(j) for j in context.robot.joint_names]
+    return motion_room(connection.motion, tr.root, tr.t, tr.q[:, cols], connection.frame, goal, checker)
+
+
 def rise(
     robot: Robot,
     start: Posture,
@@ -222,6 +246,11 @@ def rise(
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         try:
             goal = connecting_posture(library, robot, conn, key or start, checker)
+            room = _motion_room(context, conn, goal)
+            if not room.ok:
+                attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, blocked=room.describe(), seconds={"plan": time.monotonic() - t0}))
+                log.info("candidate %s@%d: %s", conn.motion, conn.frame, room.describe())
+                continue
             problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
             planned = plan_trajectory(problem)
         except RobotRiseError as e:  # one bad candidate must not end the rise
@@ -243,6 +272,7 @@ def rise(
             connecting_frame=conn.frame,
             connecting_distance=conn.distance,
             plan_duration_s=planned.trajectory.duration_s,
+            plan_rows=len(planned.trajectory.t),
         )
         result = dynamics_filter(robot, commanded, scene=scene, settings=settings, start=start)
         t2 = time.monotonic()

@@ -73,6 +73,8 @@ class Recording:
         self_contact: a self contact occurred during the interval ending at the sample, shape (K,).
         self_penetration_m: deepest self penetration during the interval [m] (>= 0), shape (K,).
         obstacle_contact: a robot geom touched a scene obstacle during the interval, shape (K,).
+        obstacle_touch: which robot geom touches a scene obstacle at the sample, shape like
+            ground_contact (what rests on a bed or a beam; the judge counts it as support).
         stand_height_m: torso height of the ``stand`` keyframe [m] (judge reference).
         trajectory_end_s: when the trajectory's last row is reached [s].
         wall_time_s: wall-clock time the play took [s].
@@ -105,6 +107,7 @@ class Recording:
     wall_time_s: float
     peak_envelope_ratio_per_step: float
     self_contact_pairs: tuple[tuple[str, str], ...] = field(default_factory=tuple)
+    obstacle_touch: np.ndarray | None = None
 
     @property
     def peak_envelope_ratio(self) -> float:
@@ -169,7 +172,8 @@ class Player:
         self contact (robot geom on robot geom), bit 1 = a robot geom on a scene obstacle;
         ``self_rows`` the self contacts' rows and ``self_pairs`` their geom names; ``touching``
         which robot geom touches the ground (bool per robot geom); ``foot_rows`` the rows of
-        foot-ground contacts; ``on_feet`` only feet touch the ground (and one does).
+        foot-ground contacts; ``on_feet`` only feet touch the ground (and one does);
+        ``on_obstacle`` which robot geom touches an obstacle (bool per robot geom).
         """
         kind, col, names = self._geom_kind, self._robot_geom_col, self.robot_geom_names
         g1, g2 = geoms[:, 0], geoms[:, 1]
@@ -188,7 +192,12 @@ class Player:
         foot_rows = np.flatnonzero(ground & self._is_foot_geom[robot_geom])
         on_feet = bool(touching.any()) and not bool(touching[self._nonfoot_cols].any())
         flags = (1 if self_rows.size else 0) | (2 if obstacle.any() else 0)
-        return (flags, self_rows, self_pairs, touching, foot_rows, on_feet)
+        on_obstacle = np.zeros(len(names), dtype=bool)
+        if obstacle.any():
+            og = np.where(k1[obstacle] == 0, g1[obstacle], g2[obstacle])
+            on_obstacle[col[og]] = True
+        on_obstacle.setflags(write=False)
+        return (flags, self_rows, self_pairs, touching, foot_rows, on_feet, on_obstacle)
 
     def reset(self, start: Posture) -> None:
         """Put the robot at rest in ``start`` with the servo goals at its joint angles."""
@@ -261,6 +270,7 @@ class Player:
         zz_rec = np.zeros(K)  # torso z axis . world z
         site_rec = np.zeros((K, m.nsite, 3))
         contact_rec = np.zeros((K, ng), dtype=bool)
+        obstacle_touch_rec = np.zeros((K, ng), dtype=bool)
         on_feet_rec = np.zeros(K, dtype=bool)
         zmp_rec = np.full((K, 2), np.nan)
         margin_rec = np.full(K, np.nan)
@@ -314,6 +324,8 @@ class Player:
             zz_rec[k] = site_xmat[torso, 8]
             site_rec[k] = site_xpos
             contact_rec[k] = kinds[3]
+            if kinds[0] & 2:
+                obstacle_touch_rec[k] = kinds[6]
             if kinds[5]:
                 on_feet_rec[k] = True
                 feet_points.append(d.contact.pos[kinds[4], :2])
@@ -370,6 +382,7 @@ class Player:
             wall_time_s=wall,
             peak_envelope_ratio_per_step=peak,
             self_contact_pairs=tuple(sorted(pairs)),
+            obstacle_touch=obstacle_touch_rec,
         )
 
 

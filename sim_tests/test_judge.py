@@ -62,6 +62,27 @@ def test_standing_still_in_the_stand_keyframe_is_judged_standing() -> None:
     assert v.peak_envelope_ratio < 0.5
 
 
+def test_standing_on_a_low_bed_is_standing_and_lying_across_a_beam_is_not() -> None:
+    robot = load_robot()
+    start = _stand_start(robot)
+    on_bed = start.with_root(np.array([0.30, 0.0, start.root_pos[2] + 0.06]))  # the bed's top is 0.06 m high
+    q = start.joint_vector(robot.joint_names)
+    tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.5]), np.stack([q, q]), on_bed)
+    rec = Player(robot, "low_bed").play(tr, hold_s=2.5)
+    assert not rec.on_feet[-1]  # the ground itself is not touched: the bed carries the robot
+    v = judge(rec)
+    assert v.standing, v.reason
+    # the feet alone on the floor while the torso rests on an obstacle (a beam): not on its feet
+    from types import SimpleNamespace
+
+    feet_on_floor = np.array([[True, True, False]])  # columns: l_foot, r_foot, torso
+    torso_on_beam = np.array([[False, False, True]])
+    fake = SimpleNamespace(ground_contact=feet_on_floor, obstacle_touch=torso_on_beam, foot_geoms=np.array([0, 1]))
+    assert not judge_mod.supported_on_feet(fake)[0]
+    fake = SimpleNamespace(ground_contact=feet_on_floor, obstacle_touch=np.zeros((1, 3), dtype=bool), foot_geoms=np.array([0, 1]))
+    assert judge_mod.supported_on_feet(fake)[0]
+
+
 def test_a_robot_that_falls_over_is_not_standing() -> None:
     robot = load_robot()
     start = _stand_start(robot)

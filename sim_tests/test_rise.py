@@ -91,3 +91,37 @@ def test_rise_refuses_a_start_posture_inside_the_ground(robot, tmp_path, capsys)
     assert main(["rise", "--from", str(path), "--out", str(tmp_path / "o.json")]) == 2
     err = capsys.readouterr().err
     assert "not valid in scene flat" in err and "ground collision" in err
+
+
+@pytest.mark.parametrize(
+    "content, says",
+    [
+        ("not json {", "not valid JSON"),
+        (json.dumps({"format": "robot-rise/posture@1", "robot": "op3"}), "expected 'robot-rise/trajectory@1'"),
+        (json.dumps({"format": "robot-rise/trajectory@1", "robot": "op3"}), "missing field"),
+    ],
+)
+def test_check_rejects_bad_trajectory_files_with_one_line(tmp_path, capsys, content, says):
+    bad = tmp_path / "bad.json"
+    bad.write_text(content)
+    assert main(["check", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and says in err and "Traceback" not in err
+    assert main(["check", str(tmp_path / "missing.json")]) == 2
+    assert "no such trajectory file" in capsys.readouterr().err
+
+
+def test_check_rejects_time_running_backwards(proven_library_motion, tmp_path, capsys):
+    obj = json.loads(proven_library_motion.read_text())
+    obj["t"][5], obj["t"][6] = obj["t"][6], obj["t"][5]
+    bad = tmp_path / "backwards.json"
+    bad.write_text(json.dumps(obj))
+    assert main(["check", str(bad)]) == 2
+    assert "must increase strictly" in capsys.readouterr().err
+
+
+def test_check_in_a_scene_where_the_start_is_inside_an_obstacle_is_bad_input(proven_library_motion, capsys):
+    # the library motion starts lying on flat ground at the origin: in the low bed scene that is inside the bed
+    assert main(["check", str(proven_library_motion), "--scene", "low_bed"]) == 2
+    err = capsys.readouterr().err
+    assert "start posture is not valid in scene low_bed" in err and "bed" in err

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
-from robot_rise.errors import RobotRiseError
-from robot_rise.filter import FilterSettings, prove
+from robot_rise.errors import PostureError, RobotRiseError
+from robot_rise.filter import FilterSettings, prove, scene_digest
+from robot_rise.validity import ValidityChecker
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,11 +32,21 @@ def run(args: argparse.Namespace) -> int:
     tr = load_trajectory_for(robot, args.trajectory)
     if not 0 <= args.margin < 1:
         raise RobotRiseError("--margin must be in [0, 1)")
+    start_report = ValidityChecker(robot, args.scene).check(tr.start)
+    if not start_report.valid:
+        raise PostureError(
+            f"{args.trajectory}: start posture is not valid in scene {args.scene}: {'; '.join(start_report.reasons()[:3])}",
+            hint="pass the --scene the trajectory was made for" + (f" ({tr.report['scene']})" if tr.report.get("scene") else ""),
+        )
+    proven_in = tr.report.get("scene")
+    other_scene = bool(tr.report.get("scene_digest")) and tr.report.get("scene_digest") != scene_digest(args.scene)
     _, verdict, report = prove(robot, tr, scene=args.scene, settings=FilterSettings(envelope_margin=args.margin))
     if args.json:
         print_json(report)
     else:
         print(f"{args.trajectory}: {'PROVEN' if report['proven'] else 'NOT PROVEN'} in scene {args.scene}")
+        if other_scene:
+            print(f"  note: the file was proven in scene {proven_in}, not this one (pass --scene {proven_in})")
         print(f"  {verdict.summary()}")
         print(f"  duration {report['duration_s']:.2f} s; ground contacts: {', '.join(report['ground_contacts']) or 'none'}")
         for line in report["problems"]:
