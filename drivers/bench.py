@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.clock import realtime_scheduling
+from drivers.clock import SPIN_MARGIN_S, MonotonicClock, realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
 from drivers.group import FEEDBACK_SIZE, ServoGroup
 from drivers.protocol import wire_time_s
@@ -240,7 +240,8 @@ def host_code_cpu(n_servos: int = 20, *, cycles: int = 2000) -> float:
 
 def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s: float = 0.0,
               transport: str = "pty", realtime_priority: int | None = None,
-              emulator_rt_priority: int | None = EMULATOR_RT_PRIORITY) -> BusBenchResult:
+              emulator_rt_priority: int | None = EMULATOR_RT_PRIORITY,
+              spin_margin_s: float = SPIN_MARGIN_S) -> BusBenchResult:
     """Measure one baud rate (see the module docstring).
 
     Args:
@@ -251,6 +252,8 @@ def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s
         realtime_priority: run the host under SCHED_FIFO at this priority (None: normal).
         emulator_rt_priority: SCHED_FIFO priority of the pty emulator process when permitted
             (None: the emulator inherits the host's scheduling).
+        spin_margin_s: busy-waited end of the host clock's sleeps [s] (the executor's start
+            precision against its CPU cost; see :data:`drivers.clock.SPIN_MARGIN_S`).
     """
     if transport not in TRANSPORTS:
         raise ValueError(f"transport {transport!r} not in {TRANSPORTS}")
@@ -261,13 +264,14 @@ def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s
         with spawn_pty_server(smap.ids, baud_rate=baud_rate, wire_timing=True,
                               rt_priority=emulator_rt_priority) as server:
             emulator = server.scheduling
-            with realtime_scheduling(realtime_priority) as note, connect(smap, server.device) as conn:
+            with realtime_scheduling(realtime_priority) as note, \
+                    connect(smap, server.device, clock=MonotonicClock(spin_s=spin_margin_s)) as conn:
                 m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
                 stats = conn.bus.stats
     else:
         emulator = "in-process"
         with realtime_scheduling(realtime_priority) as note, \
-                connect(smap, mock_url_for(smap, wire_timing=True)) as conn:
+                connect(smap, mock_url_for(smap, wire_timing=True, clock=MonotonicClock(spin_s=spin_margin_s))) as conn:
             m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
             stats = conn.bus.stats
     return BusBenchResult(baud_rate, n_servos, transport, m.rate_hz, wire_limit_hz(n_servos, baud_rate), m.cpu_s,
@@ -310,11 +314,14 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints
     p.add_argument("--rt-priority", type=int, metavar="P", help="host under SCHED_FIFO priority P")
     p.add_argument("--emulator-rt-priority", type=int, default=EMULATOR_RT_PRIORITY, metavar="P",
                    help=f"pty emulator under SCHED_FIFO priority P (default {EMULATOR_RT_PRIORITY}; 0: normal)")
+    p.add_argument("--spin-ms", type=float, default=SPIN_MARGIN_S * 1e3,
+                   help=f"busy-waited end of each sleep [ms] (default {SPIN_MARGIN_S * 1e3:g})")
     args = p.parse_args(argv)
     for baud in args.baud or (1_000_000, 4_000_000):
         print(format_result(bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds,
                                       transport=args.transport, realtime_priority=args.rt_priority,
-                                      emulator_rt_priority=args.emulator_rt_priority or None)), flush=True)
+                                      emulator_rt_priority=args.emulator_rt_priority or None,
+                                      spin_margin_s=args.spin_ms * 1e-3)), flush=True)
     return 0
 
 
