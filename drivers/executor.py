@@ -214,6 +214,13 @@ class Executor:
             SafetyError: bad shapes, or the start is far from the present posture and no
                 approach was requested.
         """
+        wire_s = self.group.cycle_wire_time_s()
+        if self.config.rate_hz * wire_s > 1.0:
+            raise SafetyError(
+                f"rate {self.config.rate_hz:g} Hz is more than the bus allows: one cycle of {len(self.group.ids)} "
+                f"servos takes {wire_s * 1e3:.2f} ms on the wire at {self.group.bus.baud_rate} bit/s "
+                f"(at most {1.0 / wire_s:.0f} Hz)",
+                hint="lower --rate, or raise the bus baud rate (servos.toml and the servos' Baud Rate)")
         t = np.asarray(t, dtype=float)
         q = np.asarray(q, dtype=float)
         if t.ndim != 1 or q.ndim != 2 or q.shape != (t.size, len(joint_names)) or t.size < 1:

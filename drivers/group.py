@@ -29,6 +29,7 @@ from drivers.control_table import (
     INDIRECT_DATA_1,
     VOLTAGE_UNIT_V,
 )
+from drivers.protocol import BITS_PER_BYTE
 from drivers.servo_map import ServoMap
 
 __all__ = ["FEEDBACK_LAYOUT", "FEEDBACK_SIZE", "Feedback", "ServoGroup"]
@@ -117,6 +118,22 @@ class ServoGroup:
         self._goal_header = struct.pack("<HH", GOAL_POSITION, 4)
         self._goal_block = np.zeros(n, dtype=_GOAL_BLOCK)
         self._goal_block["id"] = self._ids_array
+
+    def cycle_wire_time_s(self) -> float:
+        """Wire time of one cycle [s]: goal sync write + feedback read of every servo, with each
+        servo's return delay (no byte stuffing assumed). ``1 / this`` is the highest rate the
+        bus allows."""
+        n = len(self.ids)
+        write_b = 14 + 5 * n
+        request_b = 14 + n
+        if self.fast_read and self.use_indirect:
+            reply_b = 8 + n * (4 + FEEDBACK_SIZE)
+        elif self.use_indirect:
+            reply_b = n * (11 + FEEDBACK_SIZE)
+        else:  # 22-byte span and hardware error status, two plain sync reads
+            reply_b = n * (11 + 22) + (14 + n) + n * (11 + 1)
+        delays = n * self.map.bus.return_delay_time_us * 1e-6
+        return (write_b + request_b + reply_b) * BITS_PER_BYTE / self.bus.baud_rate + delays
 
     # ---- configuration helpers ----------------------------------------------------------
     def indirect_address_items(self) -> list[tuple[int, bytes]]:

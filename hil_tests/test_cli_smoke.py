@@ -111,6 +111,28 @@ def test_that_bad_execute_input_is_one_error_line_before_anything_moves(
     assert "Traceback" not in err and "preflight" not in out  # refused before the bus was touched
 
 
+def test_that_execute_refuses_a_rate_the_bus_cannot_carry(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))
+    assert main(["execute", str(path), "--mock", "--yes", "--rate", "1000"]) == 2
+    err = capsys.readouterr().err
+    assert [ln for ln in err.splitlines() if ln.startswith("error:")] == [
+        ln for ln in err.splitlines() if "more than the bus allows" in ln]
+    assert "hint: lower --rate" in err
+
+
+def test_that_answering_no_at_the_prompt_moves_nothing(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))
+    monkeypatch.setattr("builtins.input", lambda prompt: "n")
+    before = set(mb.protocol_dxlsim._BUSES)
+    assert main(["execute", str(path), "--mock"]) == 2
+    assert "aborted; nothing moved" in capsys.readouterr().out
+    (name,) = set(mb.protocol_dxlsim._BUSES) - before
+    emulator = mb.attached(name)
+    assert emulator is not None and not any(s.torque_on for s in emulator.servos.values())
+
+
 def test_that_execute_with_the_twin_reports_the_simulated_robot_upright(
         robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))

@@ -289,3 +289,17 @@ def test_that_a_second_ctrl_c_does_not_cut_the_limp_ramp_short(servo_map: ServoM
            if p.instruction == Instruction.SYNC_WRITE and struct.unpack_from("<H", p.params)[0] == 100]
     assert len(pwm) >= 48 and pwm == sorted(pwm, reverse=True) and pwm[-1] == 0
     assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)
+
+
+def test_that_a_rate_above_what_the_wire_allows_is_refused_before_streaming(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    wire = r.group.cycle_wire_time_s()
+    delays = 20 * servo_map.bus.return_delay_time_us * 1e-6
+    assert wire == pytest.approx((114 + 34 + 368) * 10 / servo_map.bus.baud_rate + delays)  # fast read
+    writes = len(_goal_writes(r))
+    ex = Executor(r.group, r.limits(), ExecutorConfig(rate_hz=500.0))
+    with pytest.raises(SafetyError, match=rf"more than the bus allows: .* \(at most {1 / wire:.0f} Hz\)"):
+        ex.run(*_trajectory(servo_map))
+    assert len(_goal_writes(r)) == writes  # nothing streamed
+    r.group.fast_read = False  # plain sync read: 20 status packets, a slower cycle
+    assert r.group.cycle_wire_time_s() > wire

@@ -142,7 +142,8 @@ from drivers.session import connect
 from drivers.startup import engage, preflight
 
 smap = load_servo_map(sys.argv[1])
-with connect(smap, sys.argv[2]) as conn:
+# generous reply margin: the emulator is a thread of the (busy) test process
+with connect(smap, sys.argv[2], rx_margin_s=0.25) as conn:
     preflight(conn.group)
     engage(conn.group, watchdog_s=0.1)
     q0 = conn.group.read_feedback().position_rad

@@ -128,3 +128,11 @@ def test_that_an_adapter_without_latency_timer_is_reported_not_raised(tmp_path) 
     device.touch()
     result = ensure_low_latency(str(device), sysfs=tmp_path)
     assert result.path is None and "no latency timer" in result.note
+
+
+def test_that_preflight_restores_position_mode_and_a_plain_drive_mode(rig: Rig) -> None:
+    rig.bus.write(4, 11, b"\x01")  # velocity mode
+    rig.bus.write(4, 10, b"\x05")  # reversed, time-based profile
+    changes = {(c.servo_id, c.register, c.old, c.new) for c in preflight(rig.group).changes}
+    assert {(4, "operating_mode", 1, 3), (4, "drive_mode", 5, 0)} <= changes
+    assert rig.mock.servo(4).get("operating_mode") == 3 and rig.mock.servo(4).get("drive_mode") == 0
