@@ -315,9 +315,10 @@ class Executor:
                     limits, q_command_rad=q_tracked, q_present_rad=fb.position_rad, valid=fb.valid,
                     hardware_error=fb.alert, temperature_c=fb.temperature_c, voltage_v=fb.voltage_v,
                     consecutive_failures=group.consecutive_failures)
-                err = np.abs(fb.position_rad - q_tracked)[fb.valid]
-                if err.size:
-                    max_track = max(max_track, float(err.max()))
+                if fb.valid.all():
+                    max_track = max(max_track, float(np.max(np.abs(fb.position_rad - q_tracked))))
+                elif fb.valid.any():
+                    max_track = max(max_track, float(np.max(np.abs(fb.position_rad - q_tracked)[fb.valid])))
                 if log:
                     log.row(k, start - t0, q_cmd, fb)
                 q_prev, q_tracked, last_fb = q_cmd, q_cmd, fb

@@ -112,6 +112,7 @@ class ServoGroup:
         self._goal_reg = struct.Struct("<i")
         n = len(self.ids)
         self._ids_array = np.array(self.ids, dtype=np.uint8)
+        self._ids_bytes = self._ids_array.tobytes()
         self._ids_tuple = tuple(self.ids)
         # goal sync write for all servos: the parameter block is a numpy record array whose
         # header (address, length) and IDs are filled once; only the ticks change per cycle
@@ -238,7 +239,7 @@ class ServoGroup:
         if raw is None:
             return None
         blocks = np.frombuffer(raw, dtype=_FAST_BLOCK, count=len(self.ids), offset=8)
-        if not np.array_equal(blocks["id"], self._ids_array):
+        if blocks["id"].tobytes() != self._ids_bytes:
             _log.debug("fast sync read blocks out of order: %s", blocks["id"])
             return None
         err = blocks["error"].astype(np.int64)
