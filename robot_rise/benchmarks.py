@@ -199,37 +199,73 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
 ENVIRONMENT_SCENES: tuple[str, ...] = ("beam", "low_bed", "table", "icy", "soft", "slope")
 """The scenes of paper 000 section 5.2 (configs/scenes/)."""
 
-ENVIRONMENT_PLACEMENTS_M: dict[str, tuple[tuple[float, float], ...]] = {
-    # under the table (x, y) = (0, 0), and lying half out from under it past each edge
-    # (paper 000 Fig. 11 lies under a table; the table top spans x +-0.30, y +-0.25)
-    "table": ((0.0, 0.0), (0.40, 0.0), (0.0, 0.35), (-0.40, 0.0)),
-}
-"""Where postures of a scene are put (root x, y), in turn; scenes not listed are sampled and settled
-at the origin, where each scene has its feature: the beam under the face of a robot lying with its
-head toward +x, the robot on the low bed's edge (legs or head over it depending on the yaw), ice,
-soft ground, the slope. Postures for a listed scene are settled on flat ground, then moved there;
-one that collides with the scene at its place is tried at the next place."""
+TABLE_HALF_EXTENTS_M = (0.30, 0.25)  # the table top of configs/scenes/table.xml, about the origin [m]
+TABLE_EDGE_OUT_M = 0.15  # half-out postures have their root this far beyond the table's edge [m]
+
+
+def _yaw_quat(yaw_rad: float) -> np.ndarray:
+    return np.array([np.cos(yaw_rad / 2), 0.0, 0.0, np.sin(yaw_rad / 2)])
+
+
+def _head_direction(quat_wxyz: np.ndarray) -> np.ndarray:
+    """Unit (x, y) the head points to when lying: the torso's up axis on the ground."""
+    from robot_rise.posture import quat_multiply
+
+    v = quat_multiply(quat_multiply(quat_wxyz, np.array([0.0, 0.0, 0.0, 1.0])), quat_wxyz * np.array([1, -1, -1, -1]))[1:3]
+    return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def _table_postures(robot: Robot, n: int, seed: int) -> list[tuple[str, object]]:
+    """Half out from under the table (paper 000 Fig. 11), then fully under it.
+
+    ``n`` postures lie half out past one of the four edges in turn, root TABLE_EDGE_OUT_M beyond
+    it, turned so that the motion that follows leads out: supine with the head out (the supine
+    get-ups roll backwards over the head), prone and lateral with the feet out (they end pushing
+    back onto the feet). Then ``max(1, n // 2)`` lie fully under it (nothing can stand there).
+    """
+    from robot_rise.posture import quat_multiply
+
+    checker = ValidityChecker(robot, "table")
+    flat = sample_lying_postures(robot, "any", 6 * n, seed)
+    hx, hy = TABLE_HALF_EXTENTS_M
+    edges = [(np.array([1.0, 0.0]), hx), (np.array([0.0, 1.0]), hy), (np.array([-1.0, 0.0]), hx), (np.array([0.0, -1.0]), hy)]
+    half: list[tuple[str, object]] = []
+    under: list[tuple[str, object]] = []
+    n_under = max(1, n // 2)
+    for kind, p in zip(flat.kinds, flat.postures):
+        if len(half) < n and kind == ("supine", "prone", "left", "right")[len(half) % 4]:
+            u, h = edges[len(half) % 4]
+            want = u if kind == "supine" else -u  # head out, or feet out
+            have = _head_direction(p.root_quat_wxyz)
+            turn = float(np.arctan2(want[1], want[0]) - np.arctan2(have[1], have[0]))
+            quat = quat_multiply(_yaw_quat(turn), p.root_quat_wxyz)
+            xy = u * (h + TABLE_EDGE_OUT_M)
+            moved = p.with_root(np.array([xy[0], xy[1], p.root_pos[2]]), quat / np.linalg.norm(quat))
+            if checker.is_valid(moved):
+                half.append((kind, moved))
+                continue
+        if len(under) < n_under:
+            moved = p.with_root(np.array([0.0, 0.0, p.root_pos[2]]))
+            if checker.is_valid(moved):
+                under.append((kind, moved))
+        if len(half) == n and len(under) == n_under:
+            break
+    return half + under
 
 
 def environment_postures(robot: Robot, scene: str, n: int, seed: int) -> list[tuple[str, object]]:
-    """``n`` lying postures placed for ``scene`` (kinds cycle supine, prone, left, right): (kind, posture)."""
-    places = ENVIRONMENT_PLACEMENTS_M.get(scene)
-    if places is None:
-        sample = sample_lying_postures(robot, "any", n, seed, scene=scene)
-        return list(zip(sample.kinds, sample.postures))
-    checker = ValidityChecker(robot, scene)
-    flat = sample_lying_postures(robot, "any", 4 * n, seed)
-    out: list[tuple[str, object]] = []
-    for i, (kind, p) in enumerate(zip(flat.kinds, flat.postures)):
-        for j in range(len(places)):
-            x, y = places[(len(out) + j) % len(places)]
-            moved = p.with_root(np.array([x, y, p.root_pos[2]]))
-            if checker.is_valid(moved):
-                out.append((kind, moved))
-                break
-        if len(out) == n:
-            break
-    return out
+    """Lying postures placed for ``scene``: (kind, posture) pairs, kinds cycling supine, prone, left, right.
+
+    Scenes are sampled and settled at the origin, where each has its feature: the beam under the
+    face of a robot lying with its head toward +x, the robot on the low bed's edge (legs or head
+    over it depending on the yaw), ice, soft ground, the slope. The table is the exception
+    (:func:`_table_postures`: ``n`` half out from under it and ``n // 2`` fully under it), since
+    settling at its origin would drop many postures onto its top.
+    """
+    if scene == "table":
+        return _table_postures(robot, n, seed)
+    sample = sample_lying_postures(robot, "any", n, seed, scene=scene)
+    return list(zip(sample.kinds, sample.postures))
 
 
 def bench_environments(

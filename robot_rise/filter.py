@@ -222,7 +222,7 @@ def find_violations(rec: Recording, settings: FilterSettings, *, saturation_rad:
     for i, j in _windows(over.any(axis=1), t):
         joints = tuple(rec.joint_names[k] for k in np.flatnonzero(over[i : j + 1].any(axis=0)))
         out.append(Violation("torque", float(t[i]), float(t[j]), joints, float(rec.envelope_ratio[i : j + 1].max())))
-    on = rec.on_feet & np.isfinite(rec.zmp_margin_m)
+    on = supported_on_feet(rec) & np.isfinite(rec.zmp_margin_m)
     bad = on & (np.nan_to_num(rec.zmp_margin_m, nan=1.0) < settings.min_zmp_margin_m - settings.balance_tolerance_m)
     for i, j in _windows(bad, t, settings.balance_hold_s):
         out.append(Violation("balance", float(t[i]), float(t[j]), (), float(np.nanmin(rec.zmp_margin_m[i : j + 1]))))
@@ -384,9 +384,12 @@ def describe_fall(rec: Recording, trajectory: Trajectory, violations: list[Viola
     t_ref: float
     if not stretches:
         t_ref = float(rec.t[k_hi])
+        from robot_rise.sampling import classify_lying
+
         parts.append(
             f"never on its feet alone for {SLOPE_MIN_FEET_S:.1f} s; highest torso {100 * h[k_hi]:.0f} % of stand height "
             + _segment_at(trajectory, t_ref)
+            + f"; ended lying {classify_lying(rec.root_pose[-1, 3:])}"
         )
     else:
         first, last = stretches[-1]
@@ -402,15 +405,20 @@ def describe_fall(rec: Recording, trajectory: Trajectory, violations: list[Viola
                 else "the recording ended"
             )
         )
-    before = [v for v in violations if v.t_start_s <= t_ref + 0.05]
+    t_fail = t_ref if stretches else float(rec.t[-1])  # never on its feet: the whole play counts
+    pressed = [(a, b, t) for a, b, t in rec.obstacle_contact_pairs if t <= t_fail + 0.05]
+    if pressed:
+        parts.append("touched the scene's obstacles: " + ", ".join(f"{a}/{b} from {t:.2f} s" for a, b, t in pressed[:4]))
+    before = [v for v in violations if v.t_start_s <= t_fail + 0.05]
     if before:
-        v = max(before, key=lambda v: (v.t_end_s, v.kind == "balance"))
+        # a fall from the feet: the violation just before it; never up: the first thing that went wrong
+        v = max(before, key=lambda v: (v.t_end_s, v.kind == "balance")) if stretches else min(before, key=lambda v: v.t_start_s)
         what = {
             "balance": f"ZMP outside the support polygon by {-1000 * v.value:.0f} mm",
             "divergence": f"joints could not follow their targets ({', '.join(v.joints[:4])}, error {v.value:.2f} rad)",
             "torque": f"torque {v.value:.2f} of the envelope ({', '.join(v.joints[:4])})",
         }.get(v.kind, v.describe())
-        parts.append(f"last violation: {what} {v.t_start_s:.2f}-{v.t_end_s:.2f} s")
+        parts.append(f"{'last' if stretches else 'first'} violation: {what} {_segment_at(trajectory, v.t_start_s)} to {v.t_end_s:.2f} s")
     return "; ".join(parts)
 
 
@@ -435,7 +443,7 @@ def prove(
     verdict = judge(rec)
     limit = 1.0 - settings.envelope_margin
     peak_per_joint = rec.envelope_ratio.max(axis=0)
-    on = rec.on_feet & np.isfinite(rec.zmp_margin_m)
+    on = supported_on_feet(rec) & np.isfinite(rec.zmp_margin_m)
     ground_geoms = [rec.robot_geom_names[g] for g in np.flatnonzero(rec.ground_contact.any(axis=0))]
     within = verdict.peak_envelope_ratio <= limit + 1e-9
     # Touching is not colliding: a limb resting on another (as a lying robot's often does from

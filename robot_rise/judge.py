@@ -299,7 +299,7 @@ def judge(
             reason = "not settled at the end"
         else:
             reason = f"stood only {rec.t[-1] - stood_from:.2f} s of {hold_s:.2f} s"
-    on = rec.on_feet & np.isfinite(rec.zmp_margin_m)
+    on = supported_on_feet(rec) & np.isfinite(rec.zmp_margin_m)
     min_margin = float(np.min(rec.zmp_margin_m[on])) if on.any() else float("nan")
     return StandVerdict(
         standing=bool(held),

@@ -75,6 +75,8 @@ class Recording:
         obstacle_contact: a robot geom touched a scene obstacle during the interval, shape (K,).
         obstacle_touch: which robot geom touches a scene obstacle at the sample, shape like
             ground_contact (what rests on a bed or a beam; the judge counts it as support).
+        obstacle_contact_pairs: every (robot geom, obstacle geom, first contact time [s]) of the
+            play, in the order they first touched.
         stand_height_m: torso height of the ``stand`` keyframe [m] (judge reference).
         trajectory_end_s: when the trajectory's last row is reached [s].
         wall_time_s: wall-clock time the play took [s].
@@ -108,6 +110,7 @@ class Recording:
     peak_envelope_ratio_per_step: float
     self_contact_pairs: tuple[tuple[str, str], ...] = field(default_factory=tuple)
     obstacle_touch: np.ndarray | None = None
+    obstacle_contact_pairs: tuple[tuple[str, str, float], ...] = ()
 
     @property
     def peak_envelope_ratio(self) -> float:
@@ -173,7 +176,8 @@ class Player:
         ``self_rows`` the self contacts' rows and ``self_pairs`` their geom names; ``touching``
         which robot geom touches the ground (bool per robot geom); ``foot_rows`` the rows of
         foot-ground contacts; ``on_feet`` only feet touch the ground (and one does);
-        ``on_obstacle`` which robot geom touches an obstacle (bool per robot geom).
+        ``on_obstacle`` which robot geom touches an obstacle (bool per robot geom) and
+        ``obstacle_pairs`` those contacts' (robot geom, obstacle geom) names.
         """
         kind, col, names = self._geom_kind, self._robot_geom_col, self.robot_geom_names
         g1, g2 = geoms[:, 0], geoms[:, 1]
@@ -193,11 +197,14 @@ class Player:
         on_feet = bool(touching.any()) and not bool(touching[self._nonfoot_cols].any())
         flags = (1 if self_rows.size else 0) | (2 if obstacle.any() else 0)
         on_obstacle = np.zeros(len(names), dtype=bool)
+        obstacle_pairs: tuple[tuple[str, str], ...] = ()
         if obstacle.any():
-            og = np.where(k1[obstacle] == 0, g1[obstacle], g2[obstacle])
-            on_obstacle[col[og]] = True
+            rg = np.where(k1[obstacle] == 0, g1[obstacle], g2[obstacle])
+            og = np.where(k1[obstacle] == 0, g2[obstacle], g1[obstacle])
+            on_obstacle[col[rg]] = True
+            obstacle_pairs = tuple((names[col[a]], self.model.geom(int(b)).name or f"geom{int(b)}") for a, b in zip(rg, og))
         on_obstacle.setflags(write=False)
-        return (flags, self_rows, self_pairs, touching, foot_rows, on_feet, on_obstacle)
+        return (flags, self_rows, self_pairs, touching, foot_rows, on_feet, on_obstacle, obstacle_pairs)
 
     def reset(self, start: Posture) -> None:
         """Put the robot at rest in ``start`` with the servo goals at its joint angles."""
@@ -262,6 +269,7 @@ class Player:
         self_step = np.zeros(n_steps, dtype=bool)
         pen_step = np.zeros(n_steps)
         obstacle_step = np.zeros(n_steps, dtype=bool)
+        obstacle_first: dict[tuple[str, str], float] = {}  # (robot geom, obstacle geom) -> first contact [s]
         pairs: set[tuple[str, str]] = set()
         # per sample
         t_rec = np.zeros(K)
@@ -313,6 +321,9 @@ class Player:
                     pairs.update(kinds[2])
                 if kinds[0] & 2:
                     obstacle_step[s] = True
+                    for pair in kinds[7]:
+                        if pair not in obstacle_first:
+                            obstacle_first[pair] = float(d.time)
             if s + 1 != next_sample:
                 continue
             next_sample += stride
@@ -383,6 +394,7 @@ class Player:
             peak_envelope_ratio_per_step=peak,
             self_contact_pairs=tuple(sorted(pairs)),
             obstacle_touch=obstacle_touch_rec,
+            obstacle_contact_pairs=tuple((a, b, t) for (a, b), t in sorted(obstacle_first.items(), key=lambda kv: kv[1])),
         )
 
 
