@@ -59,6 +59,22 @@ def test_that_smoothing_is_deterministic_for_a_seed(beam_case):
     np.testing.assert_array_equal(_states(again), _states(smooth))
 
 
+def test_that_smoothing_does_not_depend_on_how_fast_the_machine_is(beam_case, monkeypatch):
+    """A clock that jumps 10 s per reading (a very loaded machine) gives the same smoothed path."""
+    import robot_rise.planning.smoothing as sm
+
+    checker, raw, smooth = beam_case
+    now = [0.0]
+
+    def slow() -> float:
+        now[0] += 10.0
+        return now[0]
+
+    monkeypatch.setattr(sm.time, "monotonic", slow)
+    again = smooth_path(raw, checker, seed=2)
+    np.testing.assert_array_equal(_states(again), _states(smooth))
+
+
 def test_that_tripled_control_points_reproduce_the_polyline(robot):
     """The local fallback: a piece whose control points are all tripled is the straight polyline."""
     checker = ValidityChecker(robot, None)

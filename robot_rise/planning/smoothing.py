@@ -48,14 +48,16 @@ class SmoothingConfig:
 
     Attributes:
         shortcut_attempts: random shortcut trials.
-        shortcut_budget_s: wall-clock cap on shortcutting [s].
+        shortcut_budget_s: optional wall-clock cap on shortcutting [s]. None (default): the
+            attempt count alone bounds the work, so the result depends on the seed only (a
+            clock cap made it depend on the machine's load).
         sample_spacing_m: robot-point travel between curve samples [m].
         resolution_m: verification resolution [m] (robot-point travel between checks).
         max_rounds: tripling rounds before falling back to the shortcut polyline.
     """
 
     shortcut_attempts: int = 150
-    shortcut_budget_s: float = 0.5
+    shortcut_budget_s: float | None = None
     sample_spacing_m: float = 0.02
     resolution_m: float = VERIFY_RESOLUTION_M
     max_rounds: int = 8
@@ -160,7 +162,8 @@ def smooth_path(
     validator = MotionValidator(checker, space, config.resolution_m)
     t0 = time.monotonic()
     rng = np.random.default_rng(seed)
-    ctrl = shortcut(states, validator, rng, config.shortcut_attempts, t0 + config.shortcut_budget_s)
+    deadline = float("inf") if config.shortcut_budget_s is None else t0 + config.shortcut_budget_s
+    ctrl = shortcut(states, validator, rng, config.shortcut_attempts, deadline)
     mult = np.ones(len(ctrl), dtype=int)
     mult[0] = mult[-1] = 3
     for rnd in range(config.max_rounds + 1):
