@@ -48,6 +48,13 @@ def test_that_servos_scan_on_the_mock_finds_every_mapped_servo(capsys: pytest.Ca
     assert "XM430-W350" in out
 
 
+@pytest.mark.parametrize("action", ["scan", "status"])
+def test_that_a_wrong_baud_rate_is_named_when_nothing_answers(action: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["servos", action, "--mock", "--baud", "57600"]) == 1
+    err = capsys.readouterr().err
+    assert "hint: no servo answered at 57600 bit/s (servos.toml says 2000000)" in err and "Traceback" not in err
+
+
 def test_that_execute_on_the_mock_streams_a_proven_trajectory_and_exits_zero(
         robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot))

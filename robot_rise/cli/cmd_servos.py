@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 import numpy as np
 
@@ -97,7 +98,15 @@ def run_scan(args: argparse.Namespace) -> int:
             print(f"  id {sid:3d}  {name:12s} fw {r.firmware_version:3d}  {joint}{flag}{alert}")
         missing = [i for i in smap.ids if i not in found]
         print(f"{len(found)} servo(s) answered; {len(missing)} of the map missing")
+        if not found:
+            _nothing_answered(conn.bus.baud_rate, smap.bus.baud_rate)
         return 0 if not missing else 1
+
+
+def _nothing_answered(baud: int, map_baud: int) -> None:
+    other = "" if baud == map_baud else f" (servos.toml says {map_baud})"
+    print(f"hint: no servo answered at {baud} bit/s{other}: check power, cabling and --baud "
+          "(robot-rise servos scan --all pings every ID)", file=sys.stderr)
 
 
 def run_status(args: argparse.Namespace) -> int:
@@ -117,6 +126,8 @@ def run_status(args: argparse.Namespace) -> int:
             err = HardwareError.describe(int(fb.hardware_error[k]))
             print(f"{s.id:3d} {s.joint:14s} {fb.position_rad[k]:10.3f} {fb.temperature_c[k]:7.0f} "
                   f"{fb.voltage_v[k]:7.1f}  {err}")
+        if not fb.valid.any():
+            _nothing_answered(conn.bus.baud_rate, smap.bus.baud_rate)
         return 0 if fb.valid.all() and not fb.hardware_error.any() else 1
 
 
