@@ -41,6 +41,27 @@ def test_that_segment_distance_matches_brute_force_on_random_segments():
         assert segment_distance(p0, p1, q0, q1) == pytest.approx(_brute_force_distance(p0, p1, q0, q1), abs=1e-7)
 
 
+def test_that_nearly_parallel_collinear_and_very_unequal_segments_match_brute_force():
+    # the clamping branches of the closed form: near-parallel lines (tiny denominator), collinear
+    # disjoint segments, a segment 1000 times shorter than the other, end-to-end closest points
+    rng = np.random.default_rng(3)
+    cases = []
+    for _ in range(40):
+        p0, u, w = rng.normal(size=(3, 3))
+        u /= np.linalg.norm(u)
+        for angle in (1e-9, 1e-6, 1e-3):
+            v = u + angle * np.cross(u, w)
+            cases.append((p0, p0 + u, p0 + 0.1 * w + rng.uniform(-1.5, 1.5) * u, p0 + 0.1 * w + rng.uniform(-1.5, 1.5) * u + v))
+        cases.append((p0, p0 + u, p0 + 1.3 * u, p0 + 2.0 * u))  # collinear, disjoint: gap 0.3
+        cases.append((p0, p0 + u, p0 + 0.5 * u + 0.2 * w, p0 + 0.5 * u + 0.2 * w + 1e-3 * rng.normal(size=3)))
+    for p0, p1, q0, q1 in cases:
+        assert segment_distance(p0, p1, q0, q1) == pytest.approx(_brute_force_distance(p0, p1, q0, q1), abs=1e-7)
+    # and batched, the same numbers
+    arr = [np.array(x) for x in zip(*cases)]
+    batch = segment_distance(*arr)
+    assert np.allclose(batch, [segment_distance(*c) for c in cases], atol=1e-12)
+
+
 def test_that_segment_distance_is_vectorised_over_leading_axes():
     rng = np.random.default_rng(2)
     p0, p1, q0, q1 = rng.normal(size=(4, 7, 5, 3))

@@ -123,7 +123,7 @@ GROUND_CONTACT_ZONE_M = 0.01
 # on the trajectory in the scaled tangent space (see ``second_stage``), so the weights are ours.
 SECOND_STAGE_ITERATIONS = 30  # paper 004 section 7.2: "the maximum iteration is 30"
 SECOND_STAGE_FRAME_SPACING_RAD = 0.05  # ours: frames of the projected motion at most this far apart (scaled tangent norm)
-SECOND_STAGE_W_LAP = 4.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
+SECOND_STAGE_W_LAP = 10.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
 SECOND_STAGE_W_LM = 1.0  # ours: weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M
 SECOND_STAGE_HALVINGS = 3  # ours: a frame whose step makes it or a neighbouring segment illegal halves it this often, then keeps its posture
 
@@ -1054,7 +1054,10 @@ def second_stage(
     inner = slice(1, n - 1)
     DtD = (D.T @ D).tocsr()
     A_lap = sparse.kron(DtD[inner, inner], sparse.identity(nv), format="csr")
-    seg_ok = lambda a, b: segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=levers)  # noqa: E731
+
+    def seg_ok(a: np.ndarray, b: np.ndarray) -> bool:
+        return segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=levers)
+
     for it in range(params.iterations):
         st["iterations"] = it + 1
         y = np.array([scale * tangent_difference(m, q_ref, x) for x in q])  # (n, nv)
@@ -1099,8 +1102,9 @@ def second_stage(
             if not bad.any():
                 break
             f[bad] = 0.0 if rnd >= params.halvings else 0.5 * f[bad]
-        else:  # unreachable: with every changed frame reverted the motion is the previous, legal one
+        else:  # refusals in the last round: keep the previous motion, which is legal
             cand = q
+            f[:] = 0.0
         st["held"] += int(np.sum(f[1:-1] == 0.0))
         moved = float(np.max(np.abs(scale * np.array([tangent_difference(m, a, b) for a, b in zip(q, cand)]))))
         q = cand
