@@ -24,7 +24,7 @@ from robot_rise.sampling import sample_lying_postures
 
 # What a failure must name: a constraint with where (segment and time) and which joint or body.
 PRECISE = re.compile(
-    r"no room: \w+ at \d+\.\d+ s after the connecting frame .* collides with \w+ \(\w+ / \w+ \d+ mm"  # an obstacle over the robot
+    r"no room: \w+ at \d+\.\d+ s after the connecting frame .* collides with [\w, ]+ \(\w+ / \w+ \d+ mm"  # an obstacle over the robot
     r"|not standing: .*\((never on its feet|on its feet).* at \d+\.\d+ s"  # a fall: when, in which segment
     r"|torque \d\.\d\d of the envelope .* at \w+"  # a servo beyond its envelope, which one
     r"|self-collision \d+\.\d mm deep at \d+\.\d+ s.*: \w+/\w+"  # which bodies, when
@@ -138,6 +138,26 @@ def test_a_fall_is_explained_with_when_and_in_which_segment(robot):
         pytest.skip("the robot stayed up: nothing to explain")
     assert PRECISE.search(report["problems"][0]), report["problems"]
     assert re.search(r"on its feet at 0\.\d\d s until \d+\.\d\d s", report["diagnosis"]), report["diagnosis"]
+
+
+def test_a_prone_robot_with_its_face_on_the_beam_rises(robot):  # paper 000 Fig. 9
+    start = sample_lying_postures(robot, "prone", 1, seed=2, scene="beam").postures[0]
+    result = rise(robot, start, scene="beam", candidates=2, budget_s=15)
+    assert result.ok, result.reason
+    assert result.trajectory.report["scene"] == "beam" and result.trajectory.report["proven"] is True
+
+
+def test_a_prone_robot_on_the_slope_rises_with_its_stance_turned_to_the_slope(robot):  # paper 000 Fig. 13
+    kind, start = environment_postures(robot, "slope", 2, 0)[1]
+    assert kind == "prone"
+    result = rise(robot, start, scene="slope", candidates=2, budget_s=15)
+    assert result.ok, result.reason
+    stance = result.trajectory.report.get("slope_stance")
+    if stance is not None:  # applied when the flat-ground stance did not stand (it did not, 2026-12-01)
+        assert stance["tilt_rad"] == pytest.approx(math.radians(10.0), abs=1e-6)
+        assert max(abs(v) for v in stance["ankle_offsets_rad"].values()) <= math.radians(10.0) + 1e-6
+    _, verdict, again = prove(robot, result.trajectory, scene="slope")
+    assert again["proven"] and verdict.standing
 
 
 @pytest.mark.slow
