@@ -419,3 +419,45 @@ def test_that_the_common_duration_is_the_longest_of_the_three_planners():
     assert out["ompl_rrtconnect"].jerk_common_duration == pytest.approx(50.0)
     assert math.isnan(out["rrt_blossom"].jerk_common_duration)  # unsolved: neither a reference nor a value
     assert out["energy_raw"].jerk_common_duration == pytest.approx(100.0 * 2.0**5)  # ablations use the three's reference
+
+
+def test_that_the_energy_window_fires_on_real_planner_iterations_with_a_short_patience(setup, problems):
+    robot, checker, energy = setup
+    p = problems["crossed_legs"]
+    a, b = checker.qpos_of(p.start), checker.qpos_of(p.goal)
+    # section 8 fed by the planner itself (no monkeypatching): with a patience of 1, the first
+    # iteration that neither lowers the window nor brings the ends closer is a "local minimum"
+    short = energy_interpolate(checker, a, b, params=EnergyParams(patience=1), energy=energy, budget_s=30.0)
+    assert short.status is PlanStatus.FAILED
+    assert "local minimum (paper 004 section 8)" in short.reason and "for 1 iterations" in short.reason
+    full = energy_interpolate(checker, a, b, energy=energy, budget_s=30.0)  # the paper's 50 iterations
+    assert full.status is PlanStatus.EXACT_SOLUTION
+    assert short.stats["iterations"] < full.stats["iterations"]
+
+
+def test_that_plan_with_the_energy_planner_writes_the_same_trajectory_format(setup, problems, tmp_path):
+    from robot_rise.cli import main
+    from robot_rise.posture import write_posture
+    from robot_rise.trajectory import read_trajectory
+
+    robot, checker, _ = setup
+    p = problems["crossed_legs"]
+    write_posture(tmp_path / "a.json", p.start)
+    write_posture(tmp_path / "b.json", p.goal)
+    outs = {}
+    for planner in ("energy", "rrt-blossom"):
+        rc = main(["plan", "--planner", planner, "--from", str(tmp_path / "a.json"), "--to", str(tmp_path / "b.json"),
+                   "--budget", "20", "--out", str(tmp_path / f"{planner}.json")])
+        assert rc == 0, planner
+        outs[planner] = read_trajectory(tmp_path / f"{planner}.json")
+    e, r = outs["energy"], outs["rrt-blossom"]
+    assert e.joint_names == r.joint_names == tuple(robot.joint_names)
+    assert e.root is not None and e.root.shape == (len(e.t), 7)
+    for tr in (e, r):  # rows at one period of at most the timing's 20 ms
+        dt = np.diff(tr.t)
+        assert np.allclose(dt, dt[0], rtol=1e-3) and dt[0] <= 0.02 + 1e-9
+    start = np.array([p.start.joints[n] for n in robot.joint_names])
+    goal = np.array([p.goal.joints[n] for n in robot.joint_names])
+    assert np.allclose(e.q[0], start, atol=1e-9) and np.allclose(e.q[-1], goal, atol=1e-9)
+    assert e.report["planner"]["name"] == "EnergyPlanner"
+    assert set(e.report) == set(r.report)  # same report sections (planner, timing, ...)
