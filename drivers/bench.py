@@ -149,10 +149,13 @@ def pipelined_cycles(group: ServoGroup, q: np.ndarray, cycles: int) -> int:
         if not last:
             group.write_goals(q, defer=True)  # queued: leaves with the next request
         raw = group.collect_fast_feedback_raw()
-        if raw is not None and not last:
+        sent_next = raw is not None and not last
+        if sent_next:
             group.request_fast_feedback()
         fb = group.decode_fast_feedback(raw)
         if fb is None:  # fall back for this cycle, then restart the pipeline
+            if sent_next:  # half duplex: take the reply already coming before asking again
+                group.collect_fast_feedback_raw()
             fb = group.read_feedback()
             if not last and group.pipelinable:
                 group.write_goals(q, defer=True)

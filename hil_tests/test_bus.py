@@ -167,3 +167,25 @@ def test_that_pipelined_cycles_fall_back_and_isolate_a_silent_servo(rig: Rig) ->
     rig.mock.faults.silence(8)
     assert pipelined_cycles(rig.group, np.zeros(20), 6) == 0
     assert 8 in rig.group.quarantined and not rig.group.pipelinable
+
+
+def test_that_a_pipelined_reply_out_of_order_is_drained_before_the_fallback_read(rig: Rig, monkeypatch) -> None:
+    from drivers.bench import pipelined_cycles
+    from drivers.protocol import Instruction
+
+    preflight(rig.group)
+    decode = rig.group.decode_fast_feedback
+    calls = iter([None] + [0] * 100)
+
+    def flaky(raw):  # the first reply decodes as out of order (e.g. an ID mix-up)
+        return decode(raw) if next(calls) is not None or raw is None else None
+
+    monkeypatch.setattr(rig.group, "decode_fast_feedback", lambda raw: flaky(raw))
+    start = len(rig.mock.log)
+    assert pipelined_cycles(rig.group, np.zeros(20), 4) == 4
+    kinds = [p.instruction for p in rig.mock.log[start:] if p.instruction != Instruction.SYNC_WRITE]
+    # 4 cycles + the request already on the wire when reply 1 was rejected (drained) + the
+    # fallback read of cycle 1; each reply is taken before the next request leaves
+    assert kinds == [Instruction.FAST_SYNC_READ] * 6
+    assert rig.bus.stats.stale_replies == 0 and rig.bus.stats.fast_read_failures == 0
+    assert rig.bus.port.in_waiting == 0  # no reply left over: each was matched to its own request
