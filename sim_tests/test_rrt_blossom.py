@@ -285,3 +285,40 @@ def test_that_a_problem_file_of_another_format_is_refused(robot, tmp_path):
     f.write_text('{"format": "robot-rise/planning-problems@0", "robot": "op3", "problems": []}')
     with pytest.raises(ValueError, match="planning-problems@1"):
         load_problem_set(robot, f)
+
+
+def _on_segment(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Is x = a + s (b - a) for some s in [0, 1] (to 1e-9)."""
+    u = b - a
+    n = float(np.linalg.norm(u))
+    if n < 1e-12:
+        return bool(np.allclose(x, a, atol=1e-9))
+    s = float((x - a) @ u) / n**2
+    return -1e-9 <= s <= 1 + 1e-9 and bool(np.allclose(x, a + s * u, atol=1e-9))
+
+
+def test_that_partial_body_search_moves_only_the_free_limb_off_the_straight_motion(robot, flat):
+    """Section 4.2.3 partial-body planning: the left arm goes round the body; the root and
+    every other joint stay on the straight motion between the segment's ends."""
+    space = PostureSpace.for_robot(robot)
+    arm = np.array([robot.joint_names.index(j) for j in robot.limbs["left_arm"]])
+    other = np.setdiff1d(np.arange(space.n_joints), arm)
+    a = np.asarray(robot.stand_qpos, dtype=float).copy()
+    a[2] += 0.05  # held 5 cm above the floor
+    b = a.copy()
+    a[7 + arm] = [-0.522, 1.47, -1.436]
+    b[7 + arm] = [1.802, -0.04, 1.036]  # the straight arm motion goes through the body
+    b[0] += 0.05  # the root moves too
+    b[7 + robot.joint_names.index("r_sho_pitch")] += 0.3
+    v = MotionValidator(flat, space)
+    assert v.state_valid(a) and v.state_valid(b) and not v.segment_valid(a, b)
+    free = np.zeros(space.n_joints, dtype=bool)
+    free[arm] = True
+    out = rrt_blossom(a, b, v, np.random.default_rng(0), time.monotonic() + 60.0, free_joints=free)
+    assert out.path is not None, out.reason
+    assert not MotionValidator(flat, space, TEST_RESOLUTION_M).illegal_edges(out.path).any()
+    for x in out.path:
+        assert _on_segment(x[:3], a[:3], b[:3])
+        assert _on_segment(x[7 + other], a[7 + other], b[7 + other])
+        np.testing.assert_allclose(x[3:7], a[3:7], atol=1e-12)  # the ends share the orientation
+    assert not all(_on_segment(x[7 + arm], a[7 + arm], b[7 + arm]) for x in out.path)  # the arm went round
