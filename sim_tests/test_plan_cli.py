@@ -125,3 +125,16 @@ def test_that_the_smoothed_path_passes_exactly_through_the_key_posture(beam):
     sm = out.smoothed
     x = np.concatenate([sm.root_pos, sm.root_quat_wxyz, sm.joints], axis=1)
     assert float(np.min(space.distance(x, space.state(key)))) < 1e-9
+
+
+def test_that_a_key_posture_from_the_library_is_the_goal_itself(beam):
+    """A key posture that is a (placed) library posture needs no second leg: it is the goal."""
+    from robot_rise.planning.problem import select_goal
+    from robot_rise.rise import RiseContext
+
+    robot, p, _ = beam
+    ctx = RiseContext.build(robot, "flat")
+    first = select_goal(ctx, p.start)
+    assert first.key is None and first.source
+    again = select_goal(ctx, p.start, first.goal)
+    assert again.key is None and again.goal is first.goal
