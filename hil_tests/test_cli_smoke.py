@@ -168,6 +168,28 @@ def test_that_read_posture_writes_the_present_angles(robot: Robot, tmp_path: Pat
     assert '"robot-rise/posture@1"' in out_file.read_text()
 
 
+def test_that_read_posture_takes_the_root_pose_from_a_given_posture(robot: Robot, tmp_path: Path) -> None:
+    from robot_rise.posture import Posture, read_posture, write_posture
+
+    lying = Posture(robot.name, np.array([0.3, -0.2, 0.05]), np.array([0.0, 1.0, 0.0, 0.0]),
+                    dict(zip(robot.joint_names, robot.stand_qpos[7:])))
+    root_file, out_file = tmp_path / "root.json", tmp_path / "pose.json"
+    write_posture(root_file, lying)
+    assert main(["servos", "read-posture", "--mock", "--root-from", str(root_file), "--out", str(out_file)]) == 0
+    got = read_posture(out_file, robot)
+    np.testing.assert_allclose(got.root_pos, lying.root_pos)
+    np.testing.assert_allclose(np.abs(got.root_quat_wxyz), np.abs(lying.root_quat_wxyz))
+
+
+def test_that_read_posture_refuses_a_bad_root_file_before_touching_the_bus(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad, out_file = tmp_path / "root.json", tmp_path / "pose.json"
+    bad.write_text('{"format": "robot-rise/trajectory@1"}')
+    assert main(["servos", "read-posture", "--mock", "--root-from", str(bad), "--out", str(out_file)]) == 2
+    assert "expected 'robot-rise/posture@1'" in capsys.readouterr().err
+    assert not out_file.exists()
+
+
 def test_that_mockbus_serve_prints_a_device_that_servos_scan_can_open(
         capsys: pytest.CaptureFixture[str]) -> None:
     proc = subprocess.Popen([sys.executable, "-m", "robot_rise", "mockbus", "serve", "--duration", "60"],

@@ -31,10 +31,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--posture", metavar="FILE", help="start posture JSON (default: the stand keyframe)")
     q.add_argument("--link", metavar="PATH", help="also make a symlink to the device here")
     q.add_argument("--duration", type=float, metavar="SECONDS", help="stop after this long (default: until Ctrl-C)")
+    q.add_argument("--rt-priority", type=int, metavar="P",
+                   help="serve under SCHED_FIFO priority P (1..99; needs root or CAP_SYS_NICE): replies on time "
+                        "on a busy host, as real servos answer")
     q.set_defaults(func=run_serve)
 
 
 def run_serve(args: argparse.Namespace) -> int:
+    from drivers.clock import realtime_scheduling
+    from robot_rise.errors import RobotRiseError
     from drivers.mockbus.pty_server import PtyServer
     from drivers.servo_map import load_servo_map
     from drivers.session import mock_bus_for
@@ -49,11 +54,13 @@ def run_serve(args: argparse.Namespace) -> int:
     start = read_posture(args.posture, robot) if args.posture else stand_posture(robot)
     twin = MujocoTwin(robot, args.scene, start=start) if args.twin else None
     bus = mock_bus_for(smap, initial_rad=start.joints, wire_timing=not args.no_wire_timing, plant=twin)
-    with PtyServer(bus, link=args.link) as server:
+    if args.rt_priority is not None and not 1 <= args.rt_priority <= 99:
+        raise RobotRiseError(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities are 1..99")
+    with PtyServer(bus, link=args.link) as server, realtime_scheduling(args.rt_priority) as scheduling:
         device = server.device
         print(f"mock bus on {device}: {len(smap)} servos ({robot.name}) at {smap.bus.baud_rate} bit/s"
               + (f", physics twin in scene {args.scene}" if twin else "")
-              + (f", link {args.link}" if args.link else ""))
+              + (f", link {args.link}" if args.link else "") + f"; {scheduling}")
         print(f"try: robot-rise servos scan --port {device}   (Ctrl-C stops the bus)", flush=True)
         try:
             server.serve(duration_s=args.duration)

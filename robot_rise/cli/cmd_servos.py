@@ -57,6 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     common(q)
     q.add_argument("--out", required=True, help="posture JSON to write")
     q.add_argument("--keep-torque", action="store_true", help="do not turn torque off first")
+    q.add_argument("--root-from", metavar="POSTURE",
+                   help="take the root pose (position, orientation) from this posture file; the servos cannot "
+                        "know it (default: the robot's 'stand' keyframe)")
     q.set_defaults(func=run_read_posture)
 
 
@@ -159,9 +162,15 @@ def run_reboot(args: argparse.Namespace) -> int:
 
 
 def run_read_posture(args: argparse.Namespace) -> int:
-    from robot_rise.posture import Posture, write_posture
+    from robot_rise.posture import Posture, read_posture, write_posture
 
+    # Read the root source before the bus is touched: a bad file must not leave torque off for nothing.
+    root_source = read_posture(args.root_from, None) if args.root_from else None
     robot, smap, conn = _connect(args)
+    if root_source is not None and root_source.robot != robot.name:
+        from robot_rise.errors import PostureError
+
+        raise PostureError(f"{args.root_from}: posture of robot {root_source.robot!r}, the bus is {robot.name!r}")
     with conn:
         if not args.keep_torque:
             conn.group.torque(False)
@@ -176,9 +185,14 @@ def run_read_posture(args: argparse.Namespace) -> int:
     joints = {name: float(v) for name, v in zip(robot.joint_names, robot.stand_qpos[7:])}
     for s, q in zip(smap.servos, fb.position_rad):
         joints[s.joint] = float(q)
-    posture = Posture(robot.name, np.asarray(robot.stand_qpos[:3]), np.asarray(robot.stand_qpos[3:7]), joints)
+    if root_source is not None:
+        root_pos, root_quat, root_note = root_source.root_pos, root_source.root_quat_wxyz, f"from {args.root_from}"
+    else:
+        root_pos, root_quat = np.asarray(robot.stand_qpos[:3]), np.asarray(robot.stand_qpos[3:7])
+        root_note = "from the 'stand' keyframe"
+    posture = Posture(robot.name, root_pos, root_quat, joints)
     write_posture(args.out, posture)
     worst = max(abs(joints[s.joint] - min(max(joints[s.joint], s.min), s.max)) for s in smap.servos)
     note = "" if worst < 1e-9 else f" (some joints outside the servo map limits by up to {math.degrees(worst):.1f} deg)"
-    print(f"wrote {args.out}: {len(smap)} joint angles read, root pose from the 'stand' keyframe{note}")
+    print(f"wrote {args.out}: {len(smap)} joint angles read, root pose {root_note}{note}")
     return 0
