@@ -55,7 +55,7 @@ class RiseAttempt:
     filter_reason: str = ""
     seconds: dict[str, float] = field(default_factory=dict)
     robust: bool = False
-    blocked: str = ""  # set when the motion cannot end standing where it would (placement.room_to_stand)
+    blocked: str = ""  # why the motion has no room where it would go (placement.motion_room); nothing was planned
 
     def describe(self) -> str:
         if self.blocked:

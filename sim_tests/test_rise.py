@@ -125,3 +125,15 @@ def test_check_in_a_scene_where_the_start_is_inside_an_obstacle_is_bad_input(pro
     assert main(["check", str(proven_library_motion), "--scene", "low_bed"]) == 2
     err = capsys.readouterr().err
     assert "start posture is not valid in scene low_bed" in err and "bed" in err
+
+
+def test_rise_names_a_missing_or_broken_scene_file(robot, tmp_path, capsys):
+    start = tmp_path / "lying.json"
+    write_posture(start, sample_lying_postures(robot, "prone", 1, seed=3).postures[0])
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<mujoco><worldbody><geom")
+    for scene in ("nosuch", str(broken)):
+        assert main(["rise", "--from", str(start), "--scene", scene, "--out", str(tmp_path / "o.json")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: cannot read scene ") and "shipped scenes: flat, beam" in err and "Traceback" not in err
+    assert not (tmp_path / "o.json").exists()
