@@ -24,6 +24,10 @@ Choices of ours, each a knob of :class:`BlossomConfig`:
 - the tree answering an extension greedily extends again toward the new node while that
   brings it nearer (RRT-Connect's CONNECT, of which RRT-blossom is a variant), and two nodes
   closer than ``connect_distance`` join if the straight motion between them is legal;
+- samples (the paper does not say how it draws them): a goal bias, then half from the whole
+  space (uniform SO(3) root orientation, root in a box around the ends, joints within limits)
+  and half near the straight start-goal motion; without the uniform half the search could not
+  leave the neighbourhood of the slerp (see ``BlossomConfig.uniform_share``);
 - ``free_joints`` restricts exploration to some joints (partial-body planning, section 4.2.3):
   the other DOFs, root included, stay on the straight motion between the two ends.
 
