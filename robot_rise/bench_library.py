@@ -28,7 +28,16 @@ LYING_TILT_NOISE_RAD = math.radians(20.0)  # random lying postures: roll/pitch n
 
 @dataclass(frozen=True)
 class MotionFigures:
-    """Figures of one motion played nominally on flat ground."""
+    """Figures of one motion played nominally on flat ground (and the corner peak).
+
+    Attributes:
+        duration_s: the trajectory's duration (its last goal row) [s].
+        stood_from_s: when the final stretch of standing (the judge's) begins, nominal [s].
+        peak_envelope_ratio: peak torque / envelope, nominal.
+        peak_envelope_ratio_corners: the worst peak over the four friction/mass corners of issue 4.
+        min_zmp_margin_m: smallest ZMP margin while only the feet touch the ground [m].
+        play_wall_s: wall time of the nominal play [s].
+    """
 
     name: str
     duration_s: float
@@ -36,6 +45,8 @@ class MotionFigures:
     peak_envelope_ratio: float
     min_zmp_margin_m: float
     play_wall_s: float
+    stood_from_s: float = float("nan")
+    peak_envelope_ratio_corners: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -68,13 +79,13 @@ class LibraryBench:
         out = [f"Machine: {platform.machine()}, Python {platform.python_version()}, single thread.", ""]
         if self.motions:
             out += [
-                "| motion | duration [s] | stands | peak torque / envelope | min ZMP margin on feet [mm] | play time [s] |",
-                "| --- | ---: | :---: | ---: | ---: | ---: |",
+                "| motion | duration [s] | standing from [s] | stands | peak torque / envelope | worst corner peak | min ZMP margin on feet [mm] | play time [s] |",
+                "| --- | ---: | ---: | :---: | ---: | ---: | ---: | ---: |",
             ]
             for m in self.motions:
                 out.append(
-                    f"| {m.name} | {m.duration_s:.2f} | {'yes' if m.standing else 'NO'} | {m.peak_envelope_ratio:.2f} | "
-                    f"{1000 * m.min_zmp_margin_m:.1f} | {m.play_wall_s:.2f} |"
+                    f"| {m.name} | {m.duration_s:.2f} | {m.stood_from_s:.2f} | {'yes' if m.standing else 'NO'} | {m.peak_envelope_ratio:.2f} | "
+                    f"{m.peak_envelope_ratio_corners:.2f} | {1000 * m.min_zmp_margin_m:.1f} | {m.play_wall_s:.2f} |"
                 )
             out.append("")
         s = self.selection
@@ -121,13 +132,22 @@ def random_lying_postures(robot: Robot, n: int, seed: int = 0) -> tuple[np.ndarr
 
 
 def bench_motions(robot: Robot, library: MotionLibrary) -> tuple[MotionFigures, ...]:
-    """Play every motion nominally on flat ground and collect its figures."""
-    player = Player(robot, "flat")
+    """Play every motion nominally on flat ground (and at the four friction/mass corners, for the
+    worst peak) and collect its figures."""
+    from robot_rise.library_authoring import robustness_players
+
+    player, *corners = robustness_players(robot)
     out = []
     for m in library.motions:
         rec = player.play(m.trajectory, m.start)
         v = judge(rec)
-        out.append(MotionFigures(m.name, m.duration_s, v.standing, v.peak_envelope_ratio, v.min_zmp_margin_m, rec.wall_time_s))
+        corner_peak = max(judge(c.play(m.trajectory, m.start)).peak_envelope_ratio for c in corners)
+        out.append(
+            MotionFigures(
+                m.name, m.duration_s, v.standing, v.peak_envelope_ratio, v.min_zmp_margin_m, rec.wall_time_s,
+                stood_from_s=v.stood_from_s, peak_envelope_ratio_corners=corner_peak,
+            )
+        )
     return tuple(out)
 
 

@@ -181,3 +181,37 @@ def test_index_reports_each_motions_true_duration() -> None:
     for m in LIBRARY.motions:
         assert rows[m.name]["duration_s"] == pytest.approx(m.trajectory.duration_s, abs=1e-3)
         assert m.trajectory.report["peak_envelope_ratio"] <= TORQUE_BOUND
+
+
+def _fastest(kind: str):
+    motions = [m for m in LIBRARY.motions if m.lying == kind]
+    return min(motions, key=lambda m: m.duration_s)
+
+
+def test_the_fastest_supine_motion_is_no_slower_than_the_stock_op3_back_get_up() -> None:
+    """Issue 4/6: from the back no slower than the stock OP3 (3.6 s), commanded and standing."""
+    m = _fastest("supine")
+    assert m.duration_s <= STOCK_BACK_S, m.name
+    v = judge(Player(ROBOT, "flat").play(m.trajectory, m.start))
+    assert v.standing and v.stood_from_s <= STOCK_BACK_S, (m.name, v.stood_from_s)
+
+
+def test_supine_motions_include_a_sit_up_that_never_turns_over_and_a_roll_over() -> None:
+    """Issue 4: >= 2 supine strategies, e.g. sit-up and roll-over: one never lies prone on its way
+    up (root orientation from the simulated rows), another rolls over onto the front."""
+    from robot_rise.sampling import classify_lying
+
+    turns = {}
+    for m in LIBRARY.motions:
+        if m.lying == "supine":
+            kinds = {classify_lying(row[3:]) for row in m.trajectory.root}
+            turns[m.name] = "prone" in kinds
+    assert any(turns.values()) and not all(turns.values()), turns
+
+
+def test_the_fastest_prone_motion_is_no_slower_than_the_stock_op3_front_get_up() -> None:
+    """Issue 4/6: from the front no slower than the stock OP3 (3.0 s), commanded and standing."""
+    m = _fastest("prone")
+    assert m.duration_s <= STOCK_FRONT_S, m.name
+    v = judge(Player(ROBOT, "flat").play(m.trajectory, m.start))
+    assert v.standing and v.stood_from_s <= STOCK_FRONT_S, (m.name, v.stood_from_s)
