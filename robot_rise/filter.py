@@ -17,8 +17,9 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
    does this by lowering speed where torque exceeds the limit); when the judge fails with no
    local violation, slow the motion after the join; on sloped ground (paper 000 section 5.2's
    10 deg slope) the library's flat-ground stance is first turned to the slope: from the moment
-   the robot is on its feet the ankles take up the ground's tilt in the heading the robot
-   really stands in (:func:`slope_ankle_offsets`), so the body above them stays vertical;
+   the robot is on its feet the ankles take up the ground's tilt and the legs' lengths its
+   difference across the feet, in the heading the robot really stands in
+   (:func:`slope_stance_offsets`), so the body above them stays vertical;
 5. iterate until everything passes or ``max_iterations`` is reached, then say why not.
 
 The output trajectory holds the commanded targets (not the plan) and a report proving them.
@@ -64,6 +65,8 @@ __all__ = [
     "ground_tilt_vector",
     "ankle_joints",
     "slope_ankle_offsets",
+    "slope_stance_offsets",
+    "leg_joints",
     "SLOPE_MIN_RAD",
 ]
 
@@ -73,6 +76,7 @@ log = logging.getLogger(__name__)
 SLOPE_MIN_RAD = math.radians(1.0)  # ground tilts below this are treated as level
 SLOPE_RAMP_S = 0.3  # the ankle offsets are ramped in over this long before the robot is on its feet [s]
 SLOPE_MIN_FEET_S = 0.2  # "on its feet": only the feet touch the ground for at least this long [s]
+SLOPE_LEG_JOINTS = 4  # joints per leg the slope stance adjusts, from the sole up (ankle roll, pitch, knee, hip pitch)
 
 
 @dataclass(frozen=True)
@@ -310,6 +314,86 @@ def slope_ankle_offsets(axes: dict[str, np.ndarray], tilt_world: np.ndarray, hea
     return {name: float(s_h @ a) for name, a in axes.items()}
 
 
+def leg_joints(robot: Robot, model: mujoco.MjModel, per_leg: int = SLOPE_LEG_JOINTS) -> dict[str, list[str]]:
+    """The ``per_leg`` hinge joints nearest each sole (ankle roll and pitch, knee, hip pitch), per sole site."""
+    names = set(robot.joint_names)
+    out: dict[str, list[str]] = {}
+    for site in robot.sole_sites:
+        body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)])
+        found: list[str] = []
+        while body > 0 and len(found) < per_leg:
+            for j in range(int(model.body_jntadr[body]), int(model.body_jntadr[body]) + int(model.body_jntnum[body])):
+                if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) and model.joint(j).name in names:
+                    found.append(model.joint(j).name)
+            body = int(model.body_parentid[body])
+        out[site] = found[:per_leg]
+    return out
+
+
+def slope_stance_offsets(
+    robot: Robot, model: mujoco.MjModel, joints: np.ndarray, tilt_world: np.ndarray, heading_rad: float, *, iterations: int = 4
+) -> dict[str, float]:
+    """Leg joint offsets [rad] for standing upright with both soles flat on tilted ground.
+
+    Starts from :func:`slope_ankle_offsets` (the ankles take up the tilt) and adds what the ankles
+    cannot: across the slope the uphill foot must be higher, so the legs' lengths differ (knee and
+    hip pitch). Gauss-Newton on the stance ``joints`` with the root upright at ``heading_rad``:
+    residuals are each sole's normal against the ground's (2 per sole) and the soles' height
+    difference along the ground normal [m]; least-norm steps over the SLOPE_LEG_JOINTS joints of
+    each leg (:func:`leg_joints`), Jacobian by finite differences of ``mj_kinematics``.
+
+    Args:
+        robot: the robot.
+        model: a composed model of it (any scene).
+        joints: the stance's joint angles in ``robot.joint_names`` order [rad], shape (n,).
+        tilt_world: ground tilt rotation vector [rad] (:func:`ground_tilt_vector`).
+        heading_rad: the standing robot's yaw [rad].
+    """
+    idx_root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
+    qa = int(model.jnt_qposadr[int(model.body_jntadr[idx_root])])
+    qadr = {n: int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in robot.joint_names}
+    sites = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
+    legs = leg_joints(robot, model)
+    free = [n for site in robot.sole_sites for n in legs[site]]
+    tw = np.asarray(tilt_world, dtype=float)
+    angle = float(np.linalg.norm(tw))
+    normal = np.array([0.0, 0.0, 1.0])
+    if angle > 0:
+        mat = np.zeros(9)
+        quat = np.zeros(4)
+        mujoco.mju_axisAngle2Quat(quat, tw / angle, angle)
+        mujoco.mju_quat2Mat(mat, quat)
+        normal = mat.reshape(3, 3)[:, 2]
+    d = mujoco.MjData(model)
+    base = np.asarray(joints, dtype=float)
+    offsets = dict.fromkeys(free, 0.0)
+    offsets.update({k: v for k, v in slope_ankle_offsets(ankle_joints(robot, model), tw, heading_rad).items() if k in offsets})
+
+    def residual(off: dict[str, float]) -> np.ndarray:
+        d.qpos[qa : qa + 7] = [0.0, 0.0, 1.0, math.cos(heading_rad / 2), 0.0, 0.0, math.sin(heading_rad / 2)]
+        for n, v in zip(robot.joint_names, base):
+            d.qpos[qadr[n]] = v + off.get(n, 0.0)
+        mujoco.mj_kinematics(model, d)
+        r = []
+        for sid in sites:
+            r.extend(np.cross(d.site_xmat[sid].reshape(3, 3)[:, 2], normal)[:2])
+        r.append(float((d.site_xpos[sites[0]] - d.site_xpos[sites[1]]) @ normal))
+        return np.array(r)
+
+    eps = 1e-5
+    for _ in range(iterations):
+        r0 = residual(offsets)
+        jac = np.empty((r0.size, len(free)))
+        for c, n in enumerate(free):
+            trial = dict(offsets)
+            trial[n] += eps
+            jac[:, c] = (residual(trial) - r0) / eps
+        step = np.linalg.lstsq(jac, -r0, rcond=None)[0]
+        for c, n in enumerate(free):
+            offsets[n] += float(step[c])
+    return offsets
+
+
 def _feet_from(rec: Recording, until_s: float) -> int | None:
     """First sample (at most ``until_s``) from which only the feet touch the ground for SLOPE_MIN_FEET_S."""
     if len(rec.t) < 2:
@@ -329,23 +413,25 @@ def _heading(root_quat_wxyz: np.ndarray) -> float:
 
 
 def _turn_stance_to_slope(
-    robot: Robot, tr: Trajectory, rec: Recording, axes: dict[str, np.ndarray], tilt_world: np.ndarray
+    robot: Robot, tr: Trajectory, rec: Recording, model: mujoco.MjModel, tilt_world: np.ndarray
 ) -> tuple[Trajectory, dict[str, Any]] | None:
-    """``tr`` with the ankle offsets of :func:`slope_ankle_offsets` from when the robot is on its feet
-    (ramped in over SLOPE_RAMP_S before), in the heading it stood in on ``rec``; None if it never was."""
+    """``tr`` with the leg offsets of :func:`slope_stance_offsets` (for its final stance) from when
+    the robot is on its feet (ramped in over SLOPE_RAMP_S before), in the heading it stood in on
+    ``rec``; None if it never was."""
     k = _feet_from(rec, tr.duration_s)
     if k is None:
         return None
     t_feet = float(rec.t[k])
     heading = _heading(rec.root_pose[k, 3:])
-    offsets = slope_ankle_offsets(axes, tilt_world, heading)
+    final = tr.q[-1, [tr.joint_names.index(n) for n in robot.joint_names]]
+    offsets = slope_stance_offsets(robot, model, final, tilt_world, heading)
     w = np.clip((tr.t - (t_feet - SLOPE_RAMP_S)) / SLOPE_RAMP_S, 0.0, 1.0)
     q = tr.q.copy()
     for name, off in offsets.items():
         j = tr.joint_names.index(name)
         r = robot.joint_index(name)
         q[:, j] = np.clip(q[:, j] + w * off, robot.joint_lower[r], robot.joint_upper[r])
-    info = {"on_feet_from_s": t_feet, "heading_rad": heading, "tilt_rad": float(np.linalg.norm(tilt_world)), "ankle_offsets_rad": offsets}
+    info = {"on_feet_from_s": t_feet, "heading_rad": heading, "tilt_rad": float(np.linalg.norm(tilt_world)), "leg_offsets_rad": offsets}
     return Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report, tr.root), info
 
 
@@ -530,7 +616,7 @@ def dynamics_filter(
         if slope_pending and not report["proven"]:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
             slope_pending = False
-            turned = _turn_stance_to_slope(robot, current, rec, ankle_joints(robot, player.model), tilt)
+            turned = _turn_stance_to_slope(robot, current, rec, player.model, tilt)
             if turned is not None:
                 history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, ("stance turned to the slope",)))
                 log.info("filter iteration %d: stance turned to the slope: %s", it, turned[1])

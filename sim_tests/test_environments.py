@@ -53,28 +53,36 @@ def test_the_slope_scene_is_tilted_ten_degrees_about_y_and_flat_ground_not_at_al
             assert abs(tilt[1]) == pytest.approx(angle, abs=1e-9)  # about the world y axis
 
 
-@pytest.mark.parametrize("heading_deg", [0.0, 180.0, 90.0, -135.0])
-def test_ankle_offsets_put_the_soles_flat_on_the_slope_with_the_body_upright(robot, heading_deg):
+def _standing_upright_on_the_slope(robot, heading_deg: float, offsets_of):
+    """Stand keyframe, root upright at the heading, plus ``offsets_of(model, tilt, yaw)``:
+    returns (each sole's angle to the ground normal [deg], the soles' height difference along it [m], offsets)."""
     m = compose(robot, "slope", with_actuators=False)
     idx = model_index(m, robot)
     tilt = ground_tilt_vector(m, idx.ground_geoms)
-    axes = ankle_joints(robot, m)
-    assert len(axes) == 4  # pitch and roll of each ankle, found from the kinematic tree
-    offsets = slope_ankle_offsets(axes, tilt, math.radians(heading_deg))
-    d = mujoco.MjData(m)
     yaw = math.radians(heading_deg)
+    offsets = offsets_of(m, tilt, yaw)
+    d = mujoco.MjData(m)
     d.qpos[idx.qpos_root] = [0, 0, 1, math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
     d.qpos[idx.qpos_joints] = robot.stand_qpos[7:]
     for name, off in offsets.items():
         d.qpos[idx.qpos_joints[robot.joint_index(name)]] += off
     mujoco.mj_kinematics(m, d)
-    ground = int(idx.ground_geoms[0])
-    normal = d.geom_xmat[ground].reshape(3, 3)[:, 2]
-    for site in robot.sole_sites:
-        sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
-        sole_z = d.site_xmat[sid].reshape(3, 3)[:, 2]
-        # first order in the 10 deg tilt: within 1 deg of the ground normal (was 10 deg off before)
-        assert math.degrees(math.acos(np.clip(sole_z @ normal, -1, 1))) < 1.0
+    normal = d.geom_xmat[int(idx.ground_geoms[0])].reshape(3, 3)[:, 2]
+    soles = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
+    angles = [math.degrees(math.acos(np.clip(d.site_xmat[sid].reshape(3, 3)[:, 2] @ normal, -1, 1))) for sid in soles]
+    return angles, float((d.site_xpos[soles[0]] - d.site_xpos[soles[1]]) @ normal), offsets
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 180.0, 90.0, -135.0])
+def test_ankle_offsets_put_the_soles_flat_on_the_slope_with_the_body_upright(robot, heading_deg):
+    def ankles(m, tilt, yaw):
+        axes = ankle_joints(robot, m)
+        assert len(axes) == 4  # pitch and roll of each ankle, found from the kinematic tree
+        return slope_ankle_offsets(axes, tilt, yaw)
+
+    angles, _, _ = _standing_upright_on_the_slope(robot, heading_deg, ankles)
+    # first order in the 10 deg tilt: within 1 deg of the ground normal (was 10 deg off before)
+    assert max(angles) < 1.0
 
 
 def test_a_table_over_the_robot_blocks_every_get_up_and_the_report_names_it(robot):
@@ -154,7 +162,7 @@ def test_a_prone_robot_on_the_slope_rises_with_its_stance_turned_to_the_slope(ro
     stance = result.trajectory.report.get("slope_stance")
     if stance is not None:  # applied when the flat-ground stance did not stand (it did not, 2026-12-01)
         assert stance["tilt_rad"] == pytest.approx(math.radians(10.0), abs=1e-6)
-        assert max(abs(v) for v in stance["ankle_offsets_rad"].values()) <= math.radians(10.0) + 1e-6
+        assert max(abs(v) for v in stance["leg_offsets_rad"].values()) <= 0.5
     _, verdict, again = prove(robot, result.trajectory, scene="slope")
     assert again["proven"] and verdict.standing
 
@@ -181,3 +189,16 @@ def test_rise_in_each_environment_succeeds_or_names_the_constraint_precisely(rob
                 if under_table:
                     assert "no room" in attempt.describe() and "table_top" in attempt.describe()
     assert risen > 0, f"nothing rose in {scene}"
+
+
+@pytest.mark.parametrize("heading_deg", [90.0, 53.0, -135.0])
+def test_across_the_slope_the_stance_makes_the_uphill_leg_shorter_so_both_soles_rest_flat(robot, heading_deg):
+    from robot_rise.filter import slope_stance_offsets
+
+    angles, height_difference, offsets = _standing_upright_on_the_slope(
+        robot, heading_deg, lambda m, tilt, yaw: slope_stance_offsets(robot, m, robot.stand_qpos[7:], tilt, yaw)
+    )
+    assert max(angles) < 0.1
+    # both soles on one plane parallel to the ground (the ankles alone leave them 1.9 cm apart across it)
+    assert abs(height_difference) < 1e-4
+    assert any(abs(v) > 0.05 for n, v in offsets.items() if "knee" in n)
