@@ -9,9 +9,9 @@ from robot_rise.constants import VERIFY_RESOLUTION_M
 from robot_rise.model import load_robot
 from robot_rise.planning.bench_problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
-from robot_rise.planning.problem import PlanningProblem
+from robot_rise.planning.problem import PlanningProblem, PostureSequence
 from robot_rise.planning.refine import RRTBlossomPlanner
-from robot_rise.planning.smoothing import _bspline_points, bspline_samples, smooth_path
+from robot_rise.planning.smoothing import SmoothingConfig, _bspline_points, _detour, bspline_samples, smooth_path, smooth_path_report
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import path_length
 from robot_rise.validity import ValidityChecker
@@ -99,3 +99,77 @@ def test_that_the_clamped_bspline_starts_and_ends_on_its_end_control_points(robo
     pts = bspline_samples(ctrl, space, v)
     np.testing.assert_allclose(pts[0], ctrl[0], atol=1e-12)
     np.testing.assert_allclose(pts[-1], ctrl[-1], atol=1e-12)
+
+
+# --- repair a (issue 7): put back the waypoints the shortcut removed before making hard corners ---
+
+_DISC_RADIUS = 0.42  # [rad] in the (l_sho_pitch, r_sho_pitch) plane
+_ARC_RADIUS = 0.5  # [rad] the planner's path: a smooth arc around the disc
+
+
+@pytest.fixture()
+def disc_case(robot, monkeypatch):
+    """A constructed scene: a posture is illegal inside a disc of two shoulder angles, else legal.
+
+    The path is a smooth 60-waypoint semicircle around the disc (a short, smooth planner path, as the
+    energy planner's second stage gives). Shortcutting pulls it taut into chords whose corners sit
+    on the arc; the B-spline of the taut polygon cuts those corners into the disc.
+    """
+    checker = ValidityChecker(robot, None)
+    names = list(robot.joint_names)
+    ia, ib = checker.index.qpos_joints[names.index("l_sho_pitch")], checker.index.qpos_joints[names.index("r_sho_pitch")]
+
+    def legal(qpos: np.ndarray) -> bool:
+        return bool(np.hypot(qpos[ia], qpos[ib]) >= _DISC_RADIUS)
+
+    monkeypatch.setattr(checker, "is_valid_qpos", legal)
+    theta = np.linspace(np.pi, 0.0, 60)
+    q = np.zeros((60, robot.n_joints))
+    q[:, names.index("l_sho_pitch")] = _ARC_RADIUS * np.cos(theta)
+    q[:, names.index("r_sho_pitch")] = _ARC_RADIUS * np.sin(theta)
+    seq = PostureSequence(robot.name, tuple(names), np.tile([0.0, 0.0, 0.5], (60, 1)), np.tile(robot.stand_qpos[3:7], (60, 1)), q)
+    return checker, seq, (names.index("l_sho_pitch"), names.index("r_sho_pitch"))
+
+
+def test_that_the_disc_case_makes_the_old_smoother_put_hard_corners(disc_case):
+    """Guards the construction: without repair a, the taut polygon's curve cut the disc and was
+    repaired by hard corners (else the tests below would test nothing)."""
+    checker, seq, _ = disc_case
+    _, rep = smooth_path_report(seq, checker, config=SmoothingConfig(restore_waypoints=False, max_rounds=8), seed=0)
+    assert rep.n_after_shortcut < 10 and rep.n_hard_corners >= 1
+
+
+def test_that_a_corner_cut_into_an_obstacle_gets_its_waypoints_back_and_no_hard_corner(disc_case):
+    checker, seq, _ = disc_case
+    _, old = smooth_path_report(seq, checker, config=SmoothingConfig(restore_waypoints=False, max_rounds=8), seed=0)
+    _, new = smooth_path_report(seq, checker, seed=0)
+    assert new.n_restored >= 1
+    assert new.n_control > new.n_after_shortcut
+    assert new.n_hard_corners < old.n_hard_corners
+    assert not new.fell_back
+
+
+def test_that_the_repaired_curve_is_legal_at_a_fine_resolution_and_outside_the_disc(disc_case, robot):
+    checker, seq, (ja, jb) = disc_case
+    smooth = smooth_path(seq, checker, seed=0)
+    v = MotionValidator(checker, PostureSpace.for_robot(robot), VERIFY_RESOLUTION_M / 4)
+    assert not v.illegal_edges(_states(smooth)).any()
+    assert np.min(np.hypot(smooth.joints[:, ja], smooth.joints[:, jb])) >= _DISC_RADIUS
+    np.testing.assert_allclose(_states(smooth)[[0, -1]], _states(seq)[[0, -1]], atol=1e-9)
+
+
+def test_that_the_repair_is_deterministic_for_a_seed(disc_case):
+    checker, seq, _ = disc_case
+    np.testing.assert_array_equal(_states(smooth_path(seq, checker, seed=3)), _states(smooth_path(seq, checker, seed=3)))
+
+
+def test_that_a_detour_is_not_put_back(robot):
+    """Repair a skips a removed waypoint that lengthens its edge by more than restore_max_detour."""
+    checker = ValidityChecker(robot, None)
+    v = MotionValidator(checker, PostureSpace.for_robot(robot))
+    a = np.concatenate([[0.0, 0.0, 0.5], robot.stand_qpos[3:7], np.zeros(robot.n_joints)])
+    b, m_flat, m_far = a.copy(), a.copy(), a.copy()
+    b[7] = 1.0
+    m_flat[7], m_flat[8] = 0.5, 0.05
+    m_far[7], m_far[8] = 0.5, 0.6
+    assert _detour(a, m_flat, b, v) <= SmoothingConfig().restore_max_detour < _detour(a, m_far, b, v)

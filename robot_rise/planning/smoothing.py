@@ -16,18 +16,34 @@ Two steps, each keeping the path legal:
    (hemisphere-aligned, normalised weighted sum; consecutive control orientations differ by
    small angles, where this matches the spherical blend to second order).
 
-Verification and local fallback: the curve is sampled densely and every motion between samples
-is checked with the validity checker at the verification resolution. Where the curve cuts a
-corner into collision, the control points of the offending piece are tripled: a piece whose
-control points are all tripled IS the straight polyline between them, which was legal, so
-repeated tripling converges to the legal polyline locally and leaves the rest smooth.
+Verification and local repair: the curve is sampled densely and every motion between samples
+is checked with the validity checker at the verification resolution. Where a piece of the curve
+cuts a corner into collision, two repairs, in this order:
+
+a. Put back waypoints the shortcut removed (ours, issue 7): for every edge among the piece's
+   control points that replaced original waypoints, the removed waypoint in the middle (by index)
+   is re-inserted unless it is a detour (``restore_max_detour``), and the curve is rebuilt. Every
+   edge of the control polygon stays either a verified shortcut or an original edge, so the
+   polygon stays legal; repeated, this converges to the curve of the planner's own waypoints
+   there. Why: a planner whose path is already short and smooth (the energy planner) loses it to
+   the shortcut, which pulls it taut against a contact; the taut polygon's curve then cuts the
+   contact, and before this repair every such point became a hard corner at which the
+   time-optimal timing stops. Bisection, and no detours, rather than re-inserting all removed
+   waypoints at once: a random planner's wandering stretch does not come back.
+b. Hard corners, only where nothing is left to put back: the control points of the offending
+   piece are tripled. A piece whose control points are all tripled IS the straight polyline
+   between them, which is legal, so repeated tripling converges to the legal polyline locally and
+   leaves the rest smooth.
+
+If a and b together do not converge within ``max_rounds``, the curve is rebuilt with b alone
+(the smoother before issue 7), then the polygon is the last resort.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -37,7 +53,7 @@ from robot_rise.planning.problem import PostureSequence
 from robot_rise.planning.space import PostureSpace
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["SmoothingConfig", "smooth_path", "shortcut", "bspline_samples"]
+__all__ = ["SmoothingConfig", "SmoothingReport", "smooth_path", "smooth_path_report", "shortcut", "shortcut_indices", "bspline_samples"]
 
 log = logging.getLogger(__name__)
 
@@ -53,14 +69,52 @@ class SmoothingConfig:
             clock cap made it depend on the machine's load).
         sample_spacing_m: robot-point travel between curve samples [m].
         resolution_m: verification resolution [m] (robot-point travel between checks).
-        max_rounds: tripling rounds before falling back to the shortcut polyline.
+        max_rounds: repair rounds (put back or triple) before falling back to the polyline.
+        restore_waypoints: repair a, putting back removed waypoints before tripling (False, with
+            max_rounds=8: the smoother before issue 7's fix, kept for the ablation and the tests).
+        restore_max_detour: largest relative lengthening of an edge by a put-back waypoint.
     """
 
     shortcut_attempts: int = 150
     shortcut_budget_s: float | None = None
     sample_spacing_m: float = 0.02
     resolution_m: float = VERIFY_RESOLUTION_M
-    max_rounds: int = 8
+    # 8 tripling rounds suffice when only tripling (each round spreads a corner by one piece); the
+    # bisection of repair a adds up to log2(K) rounds for a K-waypoint stretch (K ~ 100 frames of
+    # the energy planner's second stage: 7), hence 8 + 8.
+    max_rounds: int = 2 * 8
+    restore_waypoints: bool = True
+    # Repair a puts back a removed waypoint only if routing the edge through it lengthens the edge
+    # by at most this fraction (robot-point travel). The middle of a smooth arc of up to ~110 deg
+    # passes (1/cos(theta/4) - 1 <= 0.15 in a Euclidean metric); a random planner's detour, which
+    # the shortcut rightly removed, does not: first measured without the limit, RRT-blossom on
+    # crossed arms (seed 0) came back through its detour, 1.87 s -> 3.46 s and 9x the
+    # dimensionless jerk. Such an edge gets repair b instead.
+    restore_max_detour: float = 0.15
+
+
+@dataclass(frozen=True)
+class SmoothingReport:
+    """What the smoother did (for benchmarks and tests).
+
+    Attributes:
+        n_input: waypoints given.
+        n_after_shortcut: control points after shortcutting.
+        n_restored: removed waypoints put back (repair a).
+        n_control: control points of the final curve.
+        n_hard_corners: control points tripled (repair b), i.e. points where the curve stops bending
+            smoothly and the timing slows to rest; ends excluded.
+        rounds: repair rounds used.
+        fell_back: True when the curve stayed illegal and the polyline was returned.
+    """
+
+    n_input: int
+    n_after_shortcut: int
+    n_restored: int
+    n_control: int
+    n_hard_corners: int
+    rounds: int
+    fell_back: bool
 
 
 def _states(seq: PostureSequence) -> np.ndarray:
@@ -75,16 +129,22 @@ def shortcut(states: np.ndarray, validator: MotionValidator, rng: np.random.Gene
     Returns:
         a legal path with the same ends, shape (K', 7 + n), K' <= K.
     """
-    path = list(states)
+    return states[shortcut_indices(states, validator, rng, attempts, deadline)]
+
+
+def shortcut_indices(states: np.ndarray, validator: MotionValidator, rng: np.random.Generator, attempts: int, deadline: float) -> np.ndarray:
+    """As :func:`shortcut`, returning which waypoints it keeps: increasing indices, shape (K',),
+    first 0 and last K - 1 (same random draws, so the same result for a seed)."""
+    path = list(range(len(states)))
     for _ in range(attempts):
         if len(path) < 3 or time.monotonic() > deadline:
             break
         i, j = sorted(rng.choice(len(path), size=2, replace=False))
         if j - i < 2:
             continue
-        if validator.segment_valid(path[i], path[j], check_end=False):
+        if validator.segment_valid(states[path[i]], states[path[j]], check_end=False):
             path = path[: i + 1] + path[j:]
-    return np.array(path)
+    return np.array(path, dtype=int)
 
 
 def _bspline_points(ctrl: np.ndarray, mult: np.ndarray, space: PostureSpace, spacing_m: float, validator: MotionValidator) -> tuple[np.ndarray, np.ndarray]:
@@ -148,7 +208,7 @@ def smooth_path(
     Returns:
         a posture sequence with the same first and last posture, legal at
         ``config.resolution_m``, with waypoints every ~``sample_spacing_m`` of robot travel.
-        If smoothing cannot be made legal it returns the (legal) shortcut polyline, densified.
+        If smoothing cannot be made legal it returns the (legal) control polygon, densified.
     """
     space = PostureSpace.for_robot(checker.robot)
     if tuple(seq.joint_names) != space.joint_names:
@@ -159,33 +219,98 @@ def smooth_path(
         bounds = [0, *cuts, len(states) - 1]
         pieces = [smooth_path(_sequence(seq, states[i : j + 1]), checker, config=config, seed=seed) for i, j in zip(bounds[:-1], bounds[1:])]
         return _sequence(seq, np.concatenate([_states(p) if k == 0 else _states(p)[1:] for k, p in enumerate(pieces)]))
+    return _smooth_repaired(seq, states, checker, space, config, seed)[0]
+
+
+def smooth_path_report(
+    seq: PostureSequence,
+    checker: ValidityChecker,
+    *,
+    config: SmoothingConfig = SmoothingConfig(),
+    seed: int = 0,
+) -> tuple[PostureSequence, SmoothingReport]:
+    """:func:`smooth_path` without key postures, also saying what the smoother did."""
+    space = PostureSpace.for_robot(checker.robot)
+    if tuple(seq.joint_names) != space.joint_names:
+        raise ValueError("smooth_path: the sequence's joint order differs from the checker's robot")
+    return _smooth_repaired(seq, _states(seq), checker, space, config, seed)
+
+
+def _smooth_repaired(
+    seq: PostureSequence, states: np.ndarray, checker: ValidityChecker, space: PostureSpace, config: SmoothingConfig, seed: int
+) -> tuple[PostureSequence, SmoothingReport]:
+    """Repairs a and b; if they do not converge within the rounds, tripling alone (the smoother
+    before issue 7, ``max_rounds`` = 8), which converges where it did before: mixing the two
+    repairs can need more rounds (RRT-blossom, lying60 left/5: 16 rounds, then the polyline)."""
+    out = _smooth_states(seq, states, checker, space, config, seed)
+    if out[1].fell_back and config.restore_waypoints:
+        log.debug("repairs a + b did not converge; tripling only")
+        out = _smooth_states(seq, states, checker, space, replace(config, restore_waypoints=False, max_rounds=_TRIPLING_ROUNDS), seed)
+    return out
+
+
+_TRIPLING_ROUNDS = 8  # the smoother's rounds before issue 7 (tripling only)
+
+
+def _smooth_states(
+    seq: PostureSequence, states: np.ndarray, checker: ValidityChecker, space: PostureSpace, config: SmoothingConfig, seed: int
+) -> tuple[PostureSequence, SmoothingReport]:
+    """Shortcut, then curve with repairs a and b (module docstring); states shape (K, 7 + n)."""
     validator = MotionValidator(checker, space, config.resolution_m)
     t0 = time.monotonic()
     rng = np.random.default_rng(seed)
     deadline = float("inf") if config.shortcut_budget_s is None else t0 + config.shortcut_budget_s
-    ctrl = shortcut(states, validator, rng, config.shortcut_attempts, deadline)
-    mult = np.ones(len(ctrl), dtype=int)
-    mult[0] = mult[-1] = 3
+    keep = shortcut_indices(states, validator, rng, config.shortcut_attempts, deadline)
+    n_short = len(keep)
+    tripled = np.zeros(len(states), dtype=bool)  # by original index
+    tripled[0] = tripled[-1] = True  # the clamped ends
+    n_restored = 0
     for rnd in range(config.max_rounds + 1):
+        ctrl = states[keep]
+        mult = np.where(tripled[keep], 3, 1)
         samples, owner = _bspline_points(ctrl, mult, space, config.sample_spacing_m, validator)
         bad = _bad_intervals(samples, validator)
         if not bad.size:
-            log.debug("smoothed %d -> %d control points -> %d samples in %d rounds, %.3f s", len(states), len(ctrl), len(samples), rnd, time.monotonic() - t0)
-            return _sequence(seq, samples)
+            report = SmoothingReport(len(states), n_short, n_restored, len(keep), int(np.sum(tripled[keep][1:-1])), rnd, False)
+            log.debug("smoothed %s, %d samples, %.3f s", report, len(samples), time.monotonic() - t0)
+            return _sequence(seq, samples), report
         if rnd == config.max_rounds:
             break
         expanded: list[int] = []
         for i, m in enumerate(mult):
             expanded += [i] * int(m)
-        for k in bad:
-            for cp in expanded[owner[k] : owner[k] + 4]:
-                mult[cp] = 3
-    log.info("smoothing fell back to the shortcut polyline (curve still illegal after %d rounds)", config.max_rounds)
+        insert: set[int] = set()
+        corners: set[int] = set()
+        for piece in sorted({int(owner[k]) for k in bad}):
+            cps = sorted(set(expanded[piece : piece + 4]))  # control-point indices of the piece
+            mids = []
+            if config.restore_waypoints:
+                for a, b in zip(cps[:-1], cps[1:]):
+                    lo, hi = int(keep[a]), int(keep[b])
+                    m = (lo + hi) // 2
+                    if hi - lo > 1 and _detour(states[lo], states[m], states[hi], validator) <= config.restore_max_detour:
+                        mids.append(m)
+            if mids:
+                insert.update(mids)
+            else:
+                corners.update(int(keep[c]) for c in cps)
+        tripled[list(corners)] = True
+        n_restored += len(insert)
+        keep = np.array(sorted(set(keep.tolist()) | insert), dtype=int)
+    log.info("smoothing fell back to the polyline (curve still illegal after %d rounds)", config.max_rounds)
+    ctrl = states[keep]
     dense = [ctrl[0]]
     for a, b in zip(ctrl[:-1], ctrl[1:]):
         n = max(1, int(np.ceil(validator.travel_bound(a, b) / config.sample_spacing_m)))
         dense.extend(space.interpolate(a, b, np.arange(1, n + 1) / n))
-    return _sequence(seq, np.array(dense))
+    report = SmoothingReport(len(states), n_short, n_restored, len(keep), len(keep) - 2, config.max_rounds, True)
+    return _sequence(seq, np.array(dense)), report
+
+
+def _detour(a: np.ndarray, m: np.ndarray, b: np.ndarray, validator: MotionValidator) -> float:
+    """Relative lengthening of a -> b when routed through m (robot-point travel bound), >= 0."""
+    direct = validator.travel_bound(a, b)
+    return (validator.travel_bound(a, m) + validator.travel_bound(m, b)) / max(direct, 1e-12) - 1.0
 
 
 def _bad_intervals(samples: np.ndarray, validator: MotionValidator) -> np.ndarray:
