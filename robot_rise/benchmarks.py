@@ -308,35 +308,3 @@ def environments_table(results: dict[str, list[RiseCase]]) -> str:
     lines.append("")
     lines += [f"failed {c.name}: {c.reason}" for cases in results.values() for c in cases if not c.proven]
     return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m robot_rise.benchmarks environments [--scene S ...] [--n N] [--seed S] [--json]``."""
-    import argparse
-    import json
-    import logging
-
-    from robot_rise.model import load_robot
-
-    p = argparse.ArgumentParser(prog="python -m robot_rise.benchmarks", description="benchmarks not in `robot-rise bench`")
-    sub = p.add_subparsers(dest="bench", required=True)
-    e = sub.add_parser("environments", help="rise from postures placed in each scene of paper 000 section 5.2")
-    e.add_argument("--scene", action="append", choices=ENVIRONMENT_SCENES, help="scene(s) (default: all six)")
-    e.add_argument("--n", type=int, default=4, help="postures per scene, kinds cycling supine, prone, left, right (default: 4)")
-    e.add_argument("--seed", type=int, default=0)
-    e.add_argument("--budget", type=float, default=15.0, help="planning budget per candidate [s] (default: 15)")
-    e.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3-class robot)")
-    e.add_argument("--json", action="store_true", help="print every case as JSON")
-    args = p.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    robot = load_robot(args.robot)
-    results = bench_environments(robot, scenes=tuple(args.scene or ENVIRONMENT_SCENES), n=args.n, seed=args.seed, budget_s=args.budget)
-    if args.json:
-        print(json.dumps({s: [c.__dict__ for c in cases] for s, cases in results.items()}, indent=1, default=str))
-    else:
-        print(environments_table(results))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -10,6 +10,7 @@ import importlib
 import pkgutil
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
+from robot_rise.errors import RobotRiseError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,6 +40,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
+    from robot_rise.benchmarks import ENVIRONMENT_SCENES
+
+    e = bsub.add_parser("environments", help="rise from postures placed in each scene of paper 000 section 5.2",
+                        formatter_class=Formatter,
+                        epilog="example:\n  robot-rise bench environments --n 4 --seed 0 --scene slope --scene table")
+    e.add_argument("--scene", action="append", choices=ENVIRONMENT_SCENES, help="scene(s) (default: all six)")
+    e.add_argument("--n", type=int, default=4, help="postures per scene, kinds cycling supine, prone, left, right (default: 4)")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--budget", type=float, default=15.0, help="planning budget per candidate [s] (default: 15)")
+    e.add_argument("--json", action="store_true", help="print every case as JSON")
+    add_robot_args(e, scene=False)
+    e.set_defaults(func=run_environments)
     import robot_rise.cli as cli_pkg
 
     for info in pkgutil.iter_modules(cli_pkg.__path__):
@@ -84,4 +97,21 @@ def run_rise(args: argparse.Namespace) -> int:
     for c in cases:
         if not c.proven:
             print(f"failed {c.name}: {c.reason[:300]}")
+    return 0
+
+
+def run_environments(args: argparse.Namespace) -> int:
+    from robot_rise.benchmarks import ENVIRONMENT_SCENES, bench_environments, environments_table
+    from robot_rise.cli._common import Progress
+
+    robot = load_robot_arg(args)
+    scenes = tuple(args.scene or ENVIRONMENT_SCENES)
+    if args.n < 1:
+        raise RobotRiseError(f"--n {args.n}: at least one posture per scene")
+    results = bench_environments(robot, scenes=scenes, n=args.n, seed=args.seed, budget_s=args.budget,
+                                 progress=Progress("rising", args.n * len(scenes)))
+    if args.json:
+        print_json({s: [c.__dict__ for c in cases] for s, cases in results.items()})  # RiseCase: plain fields
+    else:
+        print(environments_table(results))
     return 0
