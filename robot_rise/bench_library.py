@@ -9,6 +9,7 @@ import logging
 import math
 import platform
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,7 @@ class SelectionBench:
     tree_us_per_query: float
     mean_evaluations: float
     build_s: float
+    nearest_motion_counts: tuple[tuple[str, int], ...] = ()  # (motion, how many queries' brute-force nearest frame is in it), most first
 
 
 @dataclass(frozen=True)
@@ -101,6 +103,8 @@ class LibraryBench:
                 "",
                 f"Tree build: {s.build_s * 1000:.0f} ms.",
             ]
+            if s.nearest_motion_counts:
+                out += ["", "Nearest motion (brute force) of the random lying postures: " + ", ".join(f"{m} {k}" for m, k in s.nearest_motion_counts) + "."]
         return "\n".join(out)
 
 
@@ -175,6 +179,7 @@ def _selection(robot: Robot, library: MotionLibrary, n: int, seed: int) -> Selec
         tree_us_per_query=1e6 * t_tree / n,
         mean_evaluations=float(np.mean([c.evaluations for c in fast])),
         build_s=tree.build_time_s,
+        nearest_motion_counts=tuple(Counter(a.motion for a in brute).most_common()),
     )
 
 

@@ -13,8 +13,13 @@ Timing is found in MuJoCo, not written by hand (the keyframe times below are onl
 2. :func:`subdivide` -- segments longer than 0.5 s are split so that only the torque-limited part
    of a long move is slowed;
 3. :func:`retime` -- played nominally and at the four friction/mass corners of issue 4: segments
-   above 0.85 of the torque-speed envelope are stretched, segments with spare torque are shortened,
-   until no segment can be shortened without breaking the torque target or the standing.
+   above ``RETIME_RATIO_TARGET`` (0.88) of the torque-speed envelope are stretched, segments with spare torque are shortened,
+   until no segment can be shortened without breaking the torque target or the standing; then
+   a coordinate descent (``_refine``) shortens one segment at a time while it still passes.
+
+Motions that need their momentum (``retime=False``, ``clamp_lead=True``: supine_situp_rock,
+prone_elbow_knees_quick) keep their searched keyframe times; :func:`clamp_goal_lead` pulls their
+goals back to errors the servos can follow within the envelope on all five players.
 
 A motion is then verified on all five players (stands, peak <= ``TORQUE_BOUND`` = 0.9 of the
 envelope, no self collision) and only then written, its index row added or replaced: the index

@@ -215,3 +215,17 @@ def test_the_fastest_prone_motion_is_no_slower_than_the_stock_op3_front_get_up()
     assert m.duration_s <= STOCK_FRONT_S, m.name
     v = judge(Player(ROBOT, "flat").play(m.trajectory, m.start))
     assert v.standing and v.stood_from_s <= STOCK_FRONT_S, (m.name, v.stood_from_s)
+
+
+def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keeps_its_rows() -> None:
+    from robot_rise.library_authoring import LEAD_CLAMP_TARGET, clamp_goal_lead
+    from robot_rise.trajectory import Trajectory
+
+    m = LIBRARY.get("prone_elbow_knees")
+    fast = Trajectory(m.trajectory.robot, m.trajectory.joint_names, m.trajectory.t * 0.5, m.trajectory.q, m.start)
+    player = Player(ROBOT, "flat")
+    assert player.play(fast).peak_envelope_ratio > 0.95  # the servos saturate
+    clamped = clamp_goal_lead(ROBOT, fast, [player])
+    assert np.array_equal(clamped.t, fast.t)
+    assert np.array_equal(clamped.q[0], fast.q[0])
+    assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
