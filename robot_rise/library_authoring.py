@@ -457,7 +457,6 @@ def _refine(
     return dur
 
 
-
 LEAD_CLAMP_RATIO = 0.85  # clamp_goal_lead: goals lead the servo by at most the error giving this ratio of the envelope
 LEAD_CLAMP_TARGET = 0.87  # clamp_goal_lead: done when every player's peak torque / envelope is at most this (bound 0.9)
 LEAD_CLAMP_WARM_ITER = 12  # clamp_goal_lead: iterations at the uniform ratio before it is lowered locally

@@ -14,7 +14,7 @@ from robot_rise.bench_library import random_lying_postures
 from robot_rise.errors import FormatError
 from robot_rise.judge import judge
 from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library
-from robot_rise.library_authoring import ROBUST_FRICTION, ROBUST_MASS
+from robot_rise.library_authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS
 from robot_rise.model import load_robot
 from robot_rise.posture import PostureDistance
 from robot_rise.sim import Player
@@ -229,3 +229,21 @@ def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keep
     assert np.array_equal(clamped.t, fast.t)
     assert np.array_equal(clamped.q[0], fast.q[0])
     assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
+
+
+DYNAMIC_MOTIONS = [s.name for s in MOTION_SPECS if s.clamp_lead]  # authored with momentum (clamp_goal_lead)
+
+
+@pytest.mark.parametrize("name", [n for n in DYNAMIC_MOTIONS if n in NAMES])
+def test_dynamic_motions_stand_with_servo_torque_minus_15_percent_and_one_row_of_latency(name: str) -> None:
+    """The momentum motions (issue 6's model errors): supply 10.2 V instead of 12 V (stall torque
+    -15 %), and every goal 10 ms (one row) late."""
+    from robot_rise.trajectory import Trajectory
+
+    m = LIBRARY.get(name)
+    tr = m.trajectory
+    v = judge(Player(ROBOT, "flat", voltage_v=10.2).play(tr, m.start))
+    assert v.standing and not v.self_collision, v.summary()
+    late = Trajectory(tr.robot, tr.joint_names, np.concatenate([[0.0], tr.t + 0.01]), np.vstack([tr.q[:1], tr.q]), tr.start)
+    v = judge(Player(ROBOT, "flat").play(late, m.start))
+    assert v.standing and not v.self_collision, v.summary()
