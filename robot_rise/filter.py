@@ -19,7 +19,11 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
    10 deg slope) the library's flat-ground stance is first turned to the slope: from the moment
    the robot is on its feet the ankles take up the ground's tilt and the legs' lengths its
    difference across the feet, in the heading the robot really stands in
-   (:func:`slope_stance_offsets`), so the body above them stays vertical;
+   (:func:`slope_stance_offsets`), so the body above them stays vertical; a body of other
+   proportions than the library's (paper 000 section 5.3, retargeting), propped on its arms and
+   feet at another lean than the library motion, gets its shoulders' pitch offset until its
+   torso leans as the library's did (:func:`lean_offsets`), so it comes onto its feet with its
+   centre of mass over them;
 5. iterate until everything passes or ``max_iterations`` is reached, then say why not.
 
 The output trajectory holds the commanded targets (not the plan) and a report proving them.
@@ -68,6 +72,9 @@ __all__ = [
     "slope_stance_offsets",
     "leg_joints",
     "SLOPE_MIN_RAD",
+    "torso_pitch_rad",
+    "shoulder_pitch_joints",
+    "lean_offsets",
 ]
 
 log = logging.getLogger(__name__)
@@ -77,6 +84,21 @@ SLOPE_MIN_RAD = math.radians(1.0)  # ground tilts below this are treated as leve
 SLOPE_RAMP_S = 0.3  # the ankle offsets are ramped in over this long before the robot is on its feet [s]
 SLOPE_MIN_FEET_S = 0.2  # "on its feet": only the feet touch the ground for at least this long [s]
 SLOPE_LEG_JOINTS = 4  # joints per leg the slope stance adjusts, from the sole up (ankle roll, pitch, knee, hip pitch)
+
+# Retargeting (paper 000 section 5.3: a body with other proportions rises on the same library,
+# the dynamics filter adapting the motion; ours: the posture is adapted, not only the timing).
+# Propped on its arms, a body with longer arms or a longer torso than the library's holds its
+# torso at another lean than the library motion did, and comes onto its feet with its centre of
+# mass behind (or ahead of) them. While an arm and a foot both touch the world, each arm's
+# shoulder pitch takes up the difference between the library's torso pitch (its simulated root)
+# and the simulated one; the offset is kept to the end (released, the arm would push again).
+LEAN_MIN_RAD = math.radians(3.0)  # smoothed lean errors below this are left alone
+LEAN_MAX_STEP_RAD = math.radians(10.0)  # the lean error fed back per row and iteration is clipped to this
+LEAN_GAIN = 1.5  # shoulder offset per radian of lean error (a propped arm turns the torso by about 0.55 of it: op3 x1.3 arms)
+LEAN_MAX_OFFSET_RAD = 0.6  # total shoulder pitch offset at most [rad]
+LEAN_SMOOTH_S = 0.15  # the lean error is smoothed with a Gaussian of this width [s]
+LEAN_ITERATIONS = 4  # filter iterations that may adapt the lean (on top of max_iterations)
+LEAN_MIN_AXIS = 0.7  # a shoulder pitch joint's axis is at least this much along the body's y axis
 
 
 @dataclass(frozen=True)
@@ -171,7 +193,8 @@ def join_with_blend(plan: Trajectory, motion: Trajectory, frame: int, *, blend_s
     mismatch at the join becomes a short blend rather than a step (paper 000 section 4.3).
 
     Returns:
-        a trajectory with the plan's start posture and joint order.
+        a trajectory with the plan's start posture and joint order; its ``root`` rows are the
+        plan's then the motion's (the library's simulated root) when both have them.
     """
     names = plan.joint_names
     cols = [motion.joint_names.index(j) for j in names]
@@ -182,7 +205,9 @@ def join_with_blend(plan: Trajectory, motion: Trajectory, frame: int, *, blend_s
     gap = max(blend_s, float(np.max(np.abs(plan.q[-1] - mq[0]))) / max_speed_rad_s)
     t = np.concatenate([plan.t, plan.t[-1] + gap + mt])
     q = np.concatenate([plan.q, mq])
-    return Trajectory(plan.robot, names, t, q, plan.start, dict(plan.report), None)
+    # the planned root, then the library's simulated one: the lean the filter adapts the body to
+    root = np.concatenate([plan.root, motion.root[frame:]]) if plan.root is not None and motion.root is not None else None
+    return Trajectory(plan.robot, names, t, q, plan.start, dict(plan.report), root)
 
 
 def time_scale(tr: Trajectory, windows: list[tuple[float, float]], factor: float) -> Trajectory:
@@ -266,13 +291,8 @@ def ground_tilt_vector(model: mujoco.MjModel, ground_geoms: np.ndarray) -> np.nd
     return np.zeros(3)
 
 
-def ankle_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The two hinge joints nearest each sole (the ankle), with their axes in the robot's frame.
-
-    Found from the kinematic tree (the sole sites' bodies and their parents), so a retargeted
-    robot needs no names. Axes are those of the ``stand`` keyframe at zero yaw [unit vectors],
-    i.e. in the frame of a robot standing facing +x.
-    """
+def _stand_facing_x(robot: Robot, model: mujoco.MjModel) -> mujoco.MjData:
+    """Kinematics of the ``stand`` keyframe at zero yaw: the frame of a robot standing facing +x."""
     d = mujoco.MjData(model)
     idx_root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
     qa = int(model.jnt_qposadr[int(model.body_jntadr[idx_root])])
@@ -280,6 +300,17 @@ def ankle_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, np.ndarray]:
     for name, value in zip(robot.joint_names, robot.stand_qpos[7:]):
         d.qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)]] = value
     mujoco.mj_kinematics(model, d)
+    return d
+
+
+def ankle_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The two hinge joints nearest each sole (the ankle), with their axes in the robot's frame.
+
+    Found from the kinematic tree (the sole sites' bodies and their parents), so a retargeted
+    robot needs no names. Axes are those of the ``stand`` keyframe at zero yaw [unit vectors],
+    i.e. in the frame of a robot standing facing +x.
+    """
+    d = _stand_facing_x(robot, model)
     out: dict[str, np.ndarray] = {}
     names = set(robot.joint_names)
     for site in robot.sole_sites:
@@ -433,6 +464,133 @@ def _turn_stance_to_slope(
         q[:, j] = np.clip(q[:, j] + w * off, robot.joint_lower[r], robot.joint_upper[r])
     info = {"on_feet_from_s": t_feet, "heading_rad": heading, "tilt_rad": float(np.linalg.norm(tilt_world)), "leg_offsets_rad": offsets}
     return Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report, tr.root), info
+
+
+def torso_pitch_rad(root_quat_wxyz: np.ndarray) -> np.ndarray:
+    """Forward lean of the torso about its own y axis [rad] (positive: leaning forward), shape (K,).
+
+    ``atan2(-x_z, z_z)`` of the torso's x and z axes in the world: 0 upright, +pi/2 lying face
+    down, -pi/2 lying on the back, whatever the heading.
+    """
+    quats = np.atleast_2d(np.asarray(root_quat_wxyz, dtype=float))
+    out = np.empty(len(quats))
+    mat = np.zeros(9)
+    for i, quat in enumerate(quats):
+        mujoco.mju_quat2Mat(mat, quat / np.linalg.norm(quat))
+        out[i] = math.atan2(-mat[6], mat[8])
+    return out
+
+
+@dataclass(frozen=True)
+class _ArmLever:
+    """An arm's shoulder pitch joint, the y component of its axis, and the arm's geoms (columns)."""
+
+    joint: str
+    axis_y: float
+    geoms: np.ndarray
+
+
+def shoulder_pitch_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, float]:
+    """Each arm's shoulder pitch joint -> the y component of its axis in the torso's frame [unit].
+
+    Arms are the limbs named ``*arm*`` in robot.toml; of an arm's hinges, the one nearest the
+    torso whose axis (``stand`` keyframe) is at least LEAN_MIN_AXIS along the torso's y axis.
+    With the arm propped on the world, turning it by ``-lean * y`` leans the torso forward by
+    about ``lean``.
+    """
+    return {a.joint: a.axis_y for a in _arm_levers(robot, model, np.zeros(0, dtype=int))}
+
+
+def _arm_levers(robot: Robot, model: mujoco.MjModel, robot_geoms: np.ndarray) -> list[_ArmLever]:
+    d = _stand_facing_x(robot, model)
+
+    def depth(body: int) -> int:
+        n = 0
+        while body > 0:
+            body = int(model.body_parentid[body])
+            n += 1
+        return n
+
+    def under(body: int, top: int) -> bool:
+        while body > 0:
+            if body == top:
+                return True
+            body = int(model.body_parentid[body])
+        return False
+
+    out = []
+    for limb, joints in robot.limbs.items():
+        if "arm" not in limb:
+            continue
+        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
+        ids = [j for j in ids if j >= 0 and int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)]
+        pitch = [j for j in ids if abs(float(d.xaxis[j][1])) >= LEAN_MIN_AXIS]
+        if not pitch:
+            continue
+        j = min(pitch, key=lambda j: depth(int(model.jnt_bodyid[j])))
+        top = int(model.jnt_bodyid[j])
+        geoms = np.array([c for c, g in enumerate(robot_geoms) if under(int(model.geom_bodyid[g]), top)], dtype=int)
+        out.append(_ArmLever(model.joint(j).name, float(d.xaxis[j][1]), geoms))
+    return out
+
+
+def lean_offsets(tr: Trajectory, rec: Recording, levers: list[_ArmLever], trunk: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Shoulder pitch offsets per row [rad] that lean the torso as ``tr.root`` (the library) does.
+
+    Where the recording has the body propped on an arm and a foot (both touch the world, the
+    ``trunk`` geoms (columns of the root body's geoms) do not), after the planned path
+    (``report["plan_rows"]``), the lean error is the reference torso
+    pitch (:func:`torso_pitch_rad` of ``tr.root``) minus the simulated one, clipped to
+    LEAN_MAX_STEP_RAD; it is smoothed over LEAN_SMOOTH_S, held from the last row measured to the
+    end, ramped in over SLOPE_RAMP_S before the first, and turned into ``-LEAN_GAIN * error * axis_y`` on each
+    arm's shoulder pitch (the arm propped on the world turns the torso the other way).
+
+    Returns:
+        (offsets of shape (T, n) in ``tr.joint_names`` order, largest smoothed error [rad]), or
+        None without reference rows or without a time propped on arms and feet.
+    """
+    if tr.root is None or not levers:
+        return None
+    contact = world_contact(rec)
+    feet = contact[:, rec.foot_geoms].any(axis=1)
+    arms = np.zeros(len(rec.t), dtype=bool)
+    for lever in levers:
+        if lever.geoms.size:
+            arms |= contact[:, lever.geoms].any(axis=1)
+    idx = np.clip(np.searchsorted(rec.t, tr.t), 0, len(rec.t) - 1)
+    valid = (feet & arms & ~contact[:, trunk].any(axis=1))[idx] & (tr.t <= tr.duration_s)
+    rows = tr.report.get("plan_rows")
+    valid[: rows if isinstance(rows, int) and rows > 0 else 1] = False  # the plan's root is kinematic, not a lean to follow
+    if valid.sum() < 2:
+        return None
+    ref = torso_pitch_rad(tr.root[:, 3:])
+    sim = np.interp(tr.t, rec.t, np.unwrap(torso_pitch_rad(rec.root_pose[:, 3:])))
+    err = np.clip(np.angle(np.exp(1j * (ref - sim))), -LEAN_MAX_STEP_RAD, LEAN_MAX_STEP_RAD)
+    tv, ev = tr.t[valid], err[valid]
+    w = np.exp(-(((tr.t[:, None] - tv[None, :]) / LEAN_SMOOTH_S) ** 2))
+    near = w.sum(axis=1) > 1e-6
+    smooth = np.interp(tr.t, tr.t[near], (w[near] @ ev) / w[near].sum(axis=1))
+    smooth[tr.t > tv[-1]] = smooth[np.flatnonzero(valid)[-1]]
+    smooth *= np.clip((tr.t - (tv[0] - SLOPE_RAMP_S)) / SLOPE_RAMP_S, 0.0, 1.0)
+    smooth[0] = 0.0  # the first row is where the robot lies
+    off = np.zeros_like(tr.q)
+    for lever in levers:
+        off[:, tr.joint_names.index(lever.joint)] = -LEAN_GAIN * smooth * lever.axis_y
+    return off, float(np.max(np.abs(smooth)))
+
+
+def _adapt_lean(
+    robot: Robot, tr: Trajectory, rec: Recording, levers: list[_ArmLever], trunk: np.ndarray, total: np.ndarray
+) -> tuple[Trajectory, np.ndarray, float] | None:
+    """``tr`` with :func:`lean_offsets` added (the total clipped to LEAN_MAX_OFFSET_RAD and the
+    joint limits); None when the lean already matches within LEAN_MIN_RAD."""
+    got = lean_offsets(tr, rec, levers, trunk)
+    if got is None or got[1] < LEAN_MIN_RAD:
+        return None
+    new_total = np.clip(total + got[0], -LEAN_MAX_OFFSET_RAD, LEAN_MAX_OFFSET_RAD)
+    cols = [robot.joint_index(n) for n in tr.joint_names]
+    q = np.clip(tr.q + (new_total - total), robot.joint_lower[cols], robot.joint_upper[cols])
+    return Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report, tr.root), new_total, got[1]
 
 
 def _segment_at(trajectory: Trajectory, t_s: float) -> str:
@@ -611,7 +769,15 @@ def dynamics_filter(
     tilt = ground_tilt_vector(player.model, player.index.ground_geoms)
     slope_pending = float(np.linalg.norm(tilt)) >= SLOPE_MIN_RAD
     slope_info: dict[str, Any] | None = None
-    for it in range(1, settings.max_iterations + 1):
+    levers = _arm_levers(robot, player.model, player.index.robot_geoms)
+    root_id = mujoco.mj_name2id(player.model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
+    trunk = np.flatnonzero(player.model.geom_bodyid[player.index.robot_geoms] == root_id)
+    lean_total = np.zeros_like(current.q)
+    lean_left = LEAN_ITERATIONS
+    lean_info: dict[str, Any] | None = None
+    for it in range(1, settings.max_iterations + LEAN_ITERATIONS + 1):
+        if it > settings.max_iterations + (LEAN_ITERATIONS - lean_left):
+            break
         rec, verdict, report = prove(robot, current, scene=scene, settings=settings, player=player, start=start)
         if slope_pending and not report["proven"]:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
@@ -624,6 +790,17 @@ def dynamics_filter(
                 current, slope_info = turned
                 continue
         violations = [v for v in find_violations(rec, settings, saturation_rad=saturation) if v.t_start_s <= current.duration_s]
+        if lean_left > 0 and not verdict.standing and current.root is not None and not any(v.kind == "torque" for v in violations):
+            # torque first (time scaling changes how the body moves); then a lean other than the library's on arms and feet
+            adapted = _adapt_lean(robot, current, rec, levers, trunk, lean_total)
+            if adapted is not None:
+                lean_left -= 1
+                history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, (f"lean on arms and feet adapted (error {math.degrees(adapted[2]):.1f} deg)",)))
+                log.info("filter iteration %d: lean on arms and feet adapted, error %.1f deg", it, math.degrees(adapted[2]))
+                last = (current, rec, verdict, report)
+                current, lean_total = adapted[0], adapted[1]
+                lean_info = {"shoulder_joints": [lv.joint for lv in levers], "max_offset_rad": float(np.max(np.abs(lean_total))), "iterations": LEAN_ITERATIONS - lean_left}
+                continue
         history.append(
             FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, tuple(v.describe() for v in violations))
         )
@@ -661,6 +838,7 @@ def dynamics_filter(
     full_report = {
         **report,
         **({"slope_stance": slope_info} if slope_info is not None else {}),
+        **({"lean_adapted": lean_info} if lean_info is not None else {}),
         "filter_iterations": len(history),
         "filter_history": [
             {"iteration": h.iteration, "duration_s": h.duration_s, "peak_torque_ratio": h.peak_envelope_ratio, "standing": h.standing, "violations": list(h.violations)}
