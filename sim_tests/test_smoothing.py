@@ -11,7 +11,16 @@ from robot_rise.planning.bench_problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PostureSequence
 from robot_rise.planning.refine import RRTBlossomPlanner
-from robot_rise.planning.smoothing import SmoothingConfig, _bspline_points, _detour, bspline_samples, smooth_path, smooth_path_report
+from robot_rise.planning.smoothing import (
+    SmoothingConfig,
+    _bspline_points,
+    _detour,
+    _timed_jerk,
+    bspline_samples,
+    smooth_path,
+    smooth_path_report,
+    tripling_only,
+)
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import path_length
 from robot_rise.validity import ValidityChecker
@@ -173,3 +182,13 @@ def test_that_a_detour_is_not_put_back(robot):
     m_flat[7], m_flat[8] = 0.5, 0.05
     m_far[7], m_far[8] = 0.5, 0.6
     assert _detour(a, m_flat, b, v) <= SmoothingConfig().restore_max_detour < _detour(a, m_far, b, v)
+
+
+def test_that_smooth_path_keeps_hard_corners_where_they_time_smoother(disc_case):
+    """smooth_path returns the curve (repair a, or hard corners alone) whose timed jerk at a
+    common duration is lower: never rougher than the smoother before repair a."""
+    checker, seq, _ = disc_case
+    for seed in range(3):
+        chosen = _timed_jerk(smooth_path(seq, checker, seed=seed), checker)
+        assert chosen <= _timed_jerk(smooth_path(seq, checker, config=tripling_only(SmoothingConfig()), seed=seed), checker) * (1 + 1e-12)
+        assert chosen <= _timed_jerk(smooth_path_report(seq, checker, seed=seed)[0], checker) * (1 + 1e-12)

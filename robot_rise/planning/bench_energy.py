@@ -31,7 +31,10 @@ Planners, all on the same strict ``ValidityChecker`` (flat scene):
   ``energy_noshortcut`` / ``energy_s2_noshortcut``: the same two through the shared B-spline and
   timing but with the shared smoother's random shortcutting turned off
   (``SmoothingConfig(shortcut_attempts=0)``). Those two are NOT the shared pipeline; they are
-  reported beside it to show what the shortcut does to a path that is already short and smooth.
+  reported beside it to show what the shortcut does to a path that is already short and smooth;
+  ``energy_oldsmooth`` / ``energy_s2_oldsmooth`` / ``rrt_blossom_oldsmooth``: smoothed as before
+  the smoother's repair a (``SmoothingConfig(restore_waypoints=False, max_rounds=8)``), the
+  "before" of issue 7's smoother change.
 
 Every solved path goes through the shared smoothing and timing (``plan_trajectory``: shortcut +
 B-spline smoothing re-verified with the checker at 2.5 mm, servo-limited timing) and is measured:
@@ -64,6 +67,7 @@ import numpy as np
 from robot_rise.model import Robot, load_robot
 from robot_rise.planning.energy import EnergyParams, EnergyPlanner, SecondStageParams, segment_is_valid
 from robot_rise.planning.problem import PlanningProblem, PlanResult
+from robot_rise.planning.timing import integrated_squared_jerk
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
@@ -288,20 +292,6 @@ def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind:
 # --- measurement ----------------------------------------------------------------------------------
 
 
-def integrated_squared_jerk(t: np.ndarray, q: np.ndarray) -> float:
-    """Sum over joints of the integral of the squared third derivative [rad^2 / s^5].
-
-    Args:
-        t: sample times [s], shape (T,), uniform period.
-        q: joint angles [rad], shape (T, n).
-    """
-    if len(t) < 4:
-        return 0.0
-    dt = float(np.median(np.diff(t)))
-    jerk = np.diff(q, n=3, axis=0) / dt**3
-    return float(np.sum(jerk * jerk) * dt)
-
-
 def dimensionless_jerk(t: np.ndarray, q: np.ndarray) -> float:
     """Integrated squared jerk times D^5 / A^2 (Hogan & Sternad 2009): duration D [s], joint-space path length A [rad].
 
@@ -364,10 +354,14 @@ class BenchRow:
     jerk_common_duration: float = math.nan  # filled by with_common_duration_jerk
 
 
-PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw")
+PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
+                 "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")
 THREE = ("energy", "rrt_blossom", "ompl_rrtconnect")  # the issue's comparison; the others are ablations
-ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw")  # run only when named in --planners
+ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
+             "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")  # run only when named in --planners
 NO_SHORTCUT = ("energy_noshortcut", "energy_s2_noshortcut")  # smoothed without the shared shortcut (not the shared pipeline)
+# smoothed as before issue 7's smoother repair (hard corners only, no waypoints put back): the "before" rows
+OLD_SMOOTH = ("energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")
 
 
 def with_common_duration_jerk(rows: list[BenchRow], reference: tuple[str, ...] = THREE) -> list[BenchRow]:
@@ -403,6 +397,9 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
         ("energy_noshortcut", EnergyPlanner()),  # smoothed without the shared shortcut (see run_benchmark)
         ("energy_s2_noshortcut", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
         ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False, second_stage=None))),  # Algorithm 1's raw alpha steps
+        ("energy_oldsmooth", EnergyPlanner()),  # the smoother before its repair a (see run_benchmark)
+        ("energy_s2_oldsmooth", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
+        ("rrt_blossom_oldsmooth", RRTBlossomPlanner()),
     ]
     if ompl_available():
         out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))
@@ -425,7 +422,7 @@ def run_benchmark(
     lying_cache: str | None = None,
 ) -> list[BenchRow]:
     """Every planner on every problem of ``sets``; smoothing and timing through ``plan_trajectory``."""
-    from robot_rise.planning.smoothing import SmoothingConfig
+    from robot_rise.planning.smoothing import SmoothingConfig, tripling_only
     from robot_rise.planning.to_trajectory import path_length, path_min_clearance, plan_trajectory
 
     robot = load_robot()
@@ -442,6 +439,8 @@ def run_benchmark(
         if not planners and name in ABLATIONS:
             continue
         smoothing = SmoothingConfig(shortcut_attempts=0) if name in NO_SHORTCUT else SmoothingConfig()
+        if name in OLD_SMOOTH:
+            smoothing = tripling_only(SmoothingConfig())
         for pset, pr in problems:
             problem = PlanningProblem(pr.start, pr.goal, checker, budget_s=budget_s, seed=seed + pr.variant)
             t0 = time.monotonic()
@@ -550,9 +549,11 @@ def _print(rows: list[BenchRow]) -> None:
     for measure in ("jerk", "jerk_common_duration", "dimensionless_jerk"):
         print(paired_jerk_table(three, measure))
         print()
-    for abl in ABLATIONS:  # each ablation in place of the energy planner
+    for abl in ABLATIONS:  # each ablation in place of the energy planner (RRT-blossom's in its place)
         if any(r.planner == abl for r in rows):
-            trio = (abl, "rrt_blossom", "ompl_rrtconnect")
+            trio = ("energy_oldsmooth", abl, "ompl_rrtconnect") if abl.startswith("rrt_blossom") else (abl, "rrt_blossom", "ompl_rrtconnect")
+            if not all(any(r.planner == n for r in rows) for n in trio):
+                continue
             alt = with_common_duration_jerk([r for r in rows if r.planner in trio], reference=trio)
             for measure in ("jerk", "jerk_common_duration", "dimensionless_jerk"):
                 print(paired_jerk_table(alt, measure))

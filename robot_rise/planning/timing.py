@@ -39,7 +39,7 @@ from robot_rise.model import Robot
 from robot_rise.planning.problem import PostureSequence
 from robot_rise.planning.space import quat_angle, slerp
 
-__all__ = ["TimingLimits", "TimedPath", "time_parameterize", "measured_rates"]
+__all__ = ["TimingLimits", "TimedPath", "time_parameterize", "measured_rates", "integrated_squared_jerk"]
 
 log = logging.getLogger(__name__)
 
@@ -230,6 +230,20 @@ def time_parameterize(
         scale *= need * 1.01
     log.debug("timed %d knots: %.3f s (stretch %.3f), velocity %.2f, accel %.2f of limits", k, t_out[-1], scale, vr, ar)
     return TimedPath(t_out, root, joints, tuple(seq.joint_names), vr, ar)
+
+
+def integrated_squared_jerk(t: np.ndarray, q: np.ndarray) -> float:
+    """Sum over joints of the integral of the squared third derivative [rad^2 / s^5].
+
+    Args:
+        t: sample times [s], shape (T,), uniform period.
+        q: joint angles [rad], shape (T, n).
+    """
+    if len(t) < 4:
+        return 0.0
+    dt = float(np.median(np.diff(t)))
+    jerk = np.diff(q, n=3, axis=0) / dt**3
+    return float(np.sum(jerk * jerk) * dt)
 
 
 def _jerk_limited(knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
