@@ -73,3 +73,16 @@ def test_long_arms_and_torso_rise_on_the_knees_first_motion_only_with_the_lean_a
     monkeypatch.setattr(filt, "LEAN_ITERATIONS", 0)
     timing_only = dynamics_filter(long, tr, start=start)
     assert not timing_only.ok and "not standing" in timing_only.reason  # time scaling alone: falls back off its feet
+
+
+@pytest.mark.slow
+def test_a_robot_with_arms_x13_and_torso_x12_rises_from_a_sampled_prone_posture_with_no_code_change(tmp_path, robot):
+    from robot_rise.rise import rise
+    from robot_rise.sampling import sample_lying_postures
+
+    long = scale_robot(robot, tmp_path / "long", BodyScale(arms=1.3, torso=1.2), name="op3_long")
+    posture = sample_lying_postures(long, "prone", 1, seed=4).postures[0]
+    result = rise(long, posture)
+    assert result.ok, result.reason
+    assert result.trajectory.report["robot_digest"] == long.digest() != robot.digest()
+    assert "lean_adapted" in result.trajectory.report
