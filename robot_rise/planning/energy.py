@@ -180,9 +180,10 @@ class EnergyParams:
         keyframes: ``plan_energy`` returns the key postures of each leg (``safe_zone_keyframes``,
             section 5.2) instead of every alpha step.
         second_stage: project each leg's motion by ``second_stage`` (section 6.2); None (default):
-            off. Off by default because the shared smoother (smoothing.py) shortcuts the projected
-            motion back to a taut polyline whose B-spline falls back to stop-and-go corners, which
-            measured worse than the key postures alone (BENCHMARKS.md, issue 7).
+            off. Off by default on measurements (BENCHMARKS.md, issue 7): through the shared
+            smoother, even with its repair that puts back the waypoints its shortcut removed, it
+            is smoother than the key postures alone on the crossed-limb problems (14/15) but only
+            on 27 of the 60 lying problems (27 rougher), and plans ~8x longer.
     """
 
     falloff_d: int = ENERGY_FALLOFF_D
