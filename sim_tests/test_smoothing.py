@@ -192,3 +192,14 @@ def test_that_smooth_path_keeps_hard_corners_where_they_time_smoother(disc_case)
         chosen = _timed_jerk(smooth_path(seq, checker, seed=seed), checker)
         assert chosen <= _timed_jerk(smooth_path(seq, checker, config=tripling_only(SmoothingConfig()), seed=seed), checker) * (1 + 1e-12)
         assert chosen <= _timed_jerk(smooth_path_report(seq, checker, seed=seed)[0], checker) * (1 + 1e-12)
+
+
+def test_that_the_planners_own_curve_is_kept_only_when_smoother_and_no_slower(disc_case, robot):
+    """Candidate d: with it, smooth_path is never rougher (timed J x D^5) nor slower than without it."""
+    from robot_rise.planning.timing import time_parameterize
+
+    checker, seq, _ = disc_case
+    with_d = smooth_path(seq, checker, seed=0)
+    without = smooth_path(seq, checker, config=SmoothingConfig(try_without_shortcut=False), seed=0)
+    assert _timed_jerk(with_d, checker) <= _timed_jerk(without, checker) * (1 + 1e-12)
+    assert time_parameterize(with_d, robot).duration_s <= time_parameterize(without, robot).duration_s + 1e-9

@@ -355,13 +355,16 @@ class BenchRow:
 
 
 PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
-                 "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")
+                 "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth", "energy_abc", "energy_s2_abc", "rrt_blossom_abc")
 THREE = ("energy", "rrt_blossom", "ompl_rrtconnect")  # the issue's comparison; the others are ablations
 ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
-             "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")  # run only when named in --planners
+             "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth",
+             "energy_abc", "energy_s2_abc", "rrt_blossom_abc")  # run only when named in --planners
 NO_SHORTCUT = ("energy_noshortcut", "energy_s2_noshortcut")  # smoothed without the shared shortcut (not the shared pipeline)
 # smoothed as before issue 7's smoother repair (hard corners only, no waypoints put back): the "before" rows
 OLD_SMOOTH = ("energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")
+# smoothed with repairs a-c but without candidate d (the curve of the planner's own waypoints)
+PREV_SMOOTH = ("energy_abc", "energy_s2_abc", "rrt_blossom_abc")
 
 
 def with_common_duration_jerk(rows: list[BenchRow], reference: tuple[str, ...] = THREE) -> list[BenchRow]:
@@ -400,6 +403,9 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
         ("energy_oldsmooth", EnergyPlanner()),  # the smoother before its repair a (see run_benchmark)
         ("energy_s2_oldsmooth", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
         ("rrt_blossom_oldsmooth", RRTBlossomPlanner()),
+        ("energy_abc", EnergyPlanner()),  # the smoother without its candidate d (see run_benchmark)
+        ("energy_s2_abc", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
+        ("rrt_blossom_abc", RRTBlossomPlanner()),
     ]
     if ompl_available():
         out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))
@@ -439,6 +445,8 @@ def run_benchmark(
         if not planners and name in ABLATIONS:
             continue
         smoothing = SmoothingConfig(shortcut_attempts=0) if name in NO_SHORTCUT else SmoothingConfig()
+        if name in PREV_SMOOTH:
+            smoothing = SmoothingConfig(try_without_shortcut=False)
         if name in OLD_SMOOTH:
             smoothing = tripling_only(SmoothingConfig())
         for pset, pr in problems:
@@ -551,7 +559,7 @@ def _print(rows: list[BenchRow]) -> None:
         print()
     for abl in ABLATIONS:  # each ablation in place of the energy planner (RRT-blossom's in its place)
         if any(r.planner == abl for r in rows):
-            trio = ("energy_oldsmooth", abl, "ompl_rrtconnect") if abl.startswith("rrt_blossom") else (abl, "rrt_blossom", "ompl_rrtconnect")
+            trio = (("energy_oldsmooth" if abl.endswith("oldsmooth") else "energy_abc"), abl, "ompl_rrtconnect") if abl.startswith("rrt_blossom") else (abl, "rrt_blossom", "ompl_rrtconnect")
             if not all(any(r.planner == n for r in rows) for n in trio):
                 continue
             alt = with_common_duration_jerk([r for r in rows if r.planner in trio], reference=trio)

@@ -74,6 +74,7 @@ class SmoothingConfig:
         restore_waypoints: repair a, putting back removed waypoints before tripling (False, with
             max_rounds=8: the smoother before issue 7's fix, kept for the ablation and the tests).
         restore_max_detour: largest relative lengthening of an edge by a put-back waypoint.
+        try_without_shortcut: candidate d of smooth_path (the planner's waypoints, not shortcut).
     """
 
     shortcut_attempts: int = 150
@@ -92,6 +93,12 @@ class SmoothingConfig:
     # crossed arms (seed 0) came back through its detour, 1.87 s -> 3.46 s and 9x the
     # dimensionless jerk. Such an edge gets repair b instead.
     restore_max_detour: float = 0.15
+    # Also smooth the planner's own waypoints without shortcutting and keep that curve if its
+    # timing is smoother (lower J x D^5) and no slower. The shortcut is there for random planners'
+    # wander; a planner whose path is already short and smooth (the energy planner's second
+    # stage) loses more to it than repair a gives back (issue 7: lying60 median dimensionless jerk
+    # 8.3e5 through the shortcut, 2.3e4 without).
+    try_without_shortcut: bool = True
 
 
 @dataclass(frozen=True)
@@ -217,6 +224,8 @@ def smooth_path(
     corners, but a put-back waypoint can leave a tight bend passed at speed, which measured
     rougher than a stop on some paths (issue 7, with repair a alone: RRT-blossom 6 of lying60's 60
     problems more than 2x the dimensionless jerk; energy planner, arm under the back, 1 of 5, 400x).
+    With ``config.try_without_shortcut`` (default) the curve of the planner's own waypoints (no
+    shortcut) is a further candidate, kept only if it times smoother and no slower.
     """
     space = PostureSpace.for_robot(checker.robot)
     if tuple(seq.joint_names) != space.joint_names:
@@ -228,6 +237,12 @@ def smooth_path(
         if _timed_jerk(alt, checker) < _timed_jerk(out, checker):
             log.debug("hard corners alone time smoother than with waypoints put back: kept")
             out = alt
+    if config.try_without_shortcut and config.shortcut_attempts > 0 and len(states) > 2:
+        whole = _smooth_through(seq, states, checker, space, replace(config, shortcut_attempts=0), seed, through)[0]
+        (j_out, d_out), (j_whole, d_whole) = _timed(out, checker), _timed(whole, checker)
+        if j_whole < j_out and d_whole <= d_out:
+            log.debug("the curve of the planner's own waypoints times smoother and no slower: kept")
+            out = whole
     return out
 
 
@@ -248,8 +263,13 @@ def _smooth_through(
 def _timed_jerk(seq: PostureSequence, checker: ValidityChecker) -> float:
     """Integrated squared jerk x D^5 of the path's default servo-limited timing [rad^2]: ranks two
     curves of one path by their jerk at a common duration (BENCHMARKS, issue 7)."""
+    return _timed(seq, checker)[0]
+
+
+def _timed(seq: PostureSequence, checker: ValidityChecker) -> tuple[float, float]:
+    """(J x D^5 [rad^2], D [s]) of the path's default servo-limited timing."""
     timed = time_parameterize(seq, checker.robot)
-    return integrated_squared_jerk(timed.t, timed.joints) * timed.duration_s**5
+    return integrated_squared_jerk(timed.t, timed.joints) * timed.duration_s**5, timed.duration_s
 
 
 def smooth_path_report(
@@ -284,7 +304,7 @@ _TRIPLING_ROUNDS = 8  # the smoother's rounds before issue 7 (tripling only)
 
 def tripling_only(config: SmoothingConfig) -> SmoothingConfig:
     """The same knobs with repair b alone: the smoother as it was before issue 7's repair a."""
-    return replace(config, restore_waypoints=False, max_rounds=_TRIPLING_ROUNDS)
+    return replace(config, restore_waypoints=False, max_rounds=_TRIPLING_ROUNDS, try_without_shortcut=False)
 
 
 def _smooth_states(
