@@ -170,7 +170,9 @@ def select_goal(ctx: Any, start: Posture, key: Posture | None = None) -> GoalSel
         tried.append((goal, f"{conn.motion}@{conn.frame} (candidate {rank})"))
         if ctx.checker.is_valid(goal):
             break
-    goal, source = next(((g, s) for g, s in tried if ctx.checker.is_valid(g)), tried[0])
+    else:  # no legal placement: the nearest, so that the planner reports why it is invalid
+        goal, _ = tried[0]
+    source = next(s for g, s in tried if g is goal)
     if key is not None:
         space = PostureSpace.for_robot(ctx.robot)
         if float(space.distance(space.state(key), space.state(goal))) < KEY_IN_LIBRARY_DISTANCE:
