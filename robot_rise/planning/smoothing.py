@@ -232,14 +232,17 @@ def smooth_path(
         raise ValueError("smooth_path: the sequence's joint order differs from the checker's robot")
     states = _states(seq)
     out, n_restored = _smooth_through(seq, states, checker, space, config, seed, through)
+    timed_out: tuple[float, float] | None = None  # (J x D^5, D) of ``out``, computed once when needed
     if config.restore_waypoints and n_restored:
         alt = _smooth_through(seq, states, checker, space, tripling_only(config), seed, through)[0]
-        if _timed_jerk(alt, checker) < _timed_jerk(out, checker):
+        timed_out, timed_alt = _timed(out, checker), _timed(alt, checker)
+        if timed_alt[0] < timed_out[0]:
             log.debug("hard corners alone time smoother than with waypoints put back: kept")
-            out = alt
+            out, timed_out = alt, timed_alt
     if config.try_without_shortcut and config.shortcut_attempts > 0 and len(states) > 2:
         whole = _smooth_through(seq, states, checker, space, replace(config, shortcut_attempts=0), seed, through)[0]
-        (j_out, d_out), (j_whole, d_whole) = _timed(out, checker), _timed(whole, checker)
+        (j_out, d_out) = timed_out if timed_out is not None else _timed(out, checker)
+        j_whole, d_whole = _timed(whole, checker)
         if j_whole < j_out and d_whole <= d_out:
             log.debug("the curve of the planner's own waypoints times smoother and no slower: kept")
             out = whole
