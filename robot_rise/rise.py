@@ -24,13 +24,24 @@ from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary
 from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room, place_near
 from robot_rise.planning.problem import PlanningProblem
+from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import Posture, validate_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import Looseness, ValidityChecker
 
-__all__ = ["RiseAttempt", "RiseResult", "RiseContext", "rise", "connection_candidates", "connecting_posture", "lying_frames"]
+__all__ = [
+    "RiseAttempt",
+    "RiseResult",
+    "RiseContext",
+    "rise",
+    "connection_candidates",
+    "connecting_posture",
+    "lying_frames",
+    "GoalSelection",
+    "select_goal",
+]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +51,7 @@ DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lyin
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
+KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
 
 
 @dataclass(frozen=True)
@@ -170,6 +182,55 @@ def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connect
     joints = np.clip(tr.q[connection.frame, cols], robot.joint_lower, robot.joint_upper)
     goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, joints)))
     return place_near(goal, start, checker)
+
+
+@dataclass(frozen=True)
+class GoalSelection:
+    """Where a plan goes when the user names no goal (``select_goal``).
+
+    Attributes:
+        goal: the connecting posture, placed where the robot lies (or where the key posture is).
+        key: the key posture to pass through, or None (none given, or it IS the connecting posture).
+        source: ``motion@frame (candidate r)`` of the library frame, for messages and reports.
+    """
+
+    goal: Posture
+    key: Posture | None
+    source: str
+
+
+def select_goal(ctx: RiseContext, start: Posture, key: Posture | None = None) -> GoalSelection:
+    """The connecting posture a plan goes to, as ``robot-rise rise`` selects it.
+
+    Paper 000 section 4.1: the nearest library posture (eq. 1) to the lying posture; with a key
+    posture the plan passes through it, and "if a key posture is not a posture in our motion
+    database, motion planning is applied again to connect the key posture to a posture in our
+    motion database" (section 5.1): the connecting posture is then the one nearest the KEY
+    posture, placed where the key posture is. Among the nearest frames of the
+    ``DEFAULT_CANDIDATES`` nearest motions (nearest first), the first whose placement is legal is
+    taken (as ``rise`` moves on to its next candidate); if none is, the nearest, so that the
+    planner reports why it is invalid.
+
+    Args:
+        ctx: library, frame index, K-means tree and checker of the scene.
+        start: the lying posture.
+        key: optional key posture.
+    """
+    anchor = key if key is not None else start
+    tried: list[tuple[Posture, str]] = []
+    for rank, conn in enumerate(connection_candidates(ctx.library, ctx.robot, anchor, DEFAULT_CANDIDATES, index=ctx.index, tree=ctx.tree)):
+        goal = connecting_posture(ctx.library, ctx.robot, conn, anchor, ctx.checker)
+        tried.append((goal, f"{conn.motion}@{conn.frame} (candidate {rank})"))
+        if ctx.checker.is_valid(goal):
+            break
+    else:  # no legal placement: the nearest, so that the planner reports why it is invalid
+        goal, _ = tried[0]
+    source = next(s for g, s in tried if g is goal)
+    if key is not None:
+        space = PostureSpace.for_robot(ctx.robot)
+        if float(space.distance(space.state(key), space.state(goal))) < KEY_IN_LIBRARY_DISTANCE:
+            return GoalSelection(key, None, source)  # the key posture is in the library: plan to it
+    return GoalSelection(goal, key, source)
 
 
 def _motion_room(context: RiseContext, connection: Connection, goal: Posture) -> MotionRoom:

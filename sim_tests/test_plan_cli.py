@@ -94,8 +94,7 @@ def _key(robot, p):
 
 def test_that_plan_with_a_key_and_no_goal_passes_the_key_and_connects_it_to_the_library(beam, capsys):
     """Paper 000 section 5.1: a key posture not in the library is connected to the library by planning again."""
-    from robot_rise.planning.problem import select_goal
-    from robot_rise.rise import RiseContext
+    from robot_rise.rise import RiseContext, select_goal
 
     robot, p, d = beam
     key = _key(robot, p)
@@ -129,8 +128,7 @@ def test_that_the_smoothed_path_passes_exactly_through_the_key_posture(beam):
 
 def test_that_a_key_posture_from_the_library_is_the_goal_itself(beam):
     """A key posture that is a (placed) library posture needs no second leg: it is the goal."""
-    from robot_rise.planning.problem import select_goal
-    from robot_rise.rise import RiseContext
+    from robot_rise.rise import RiseContext, select_goal
 
     robot, p, _ = beam
     ctx = RiseContext.build(robot, "flat")

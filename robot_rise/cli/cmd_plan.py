@@ -7,7 +7,7 @@ import sys
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
 from robot_rise.errors import RobotRiseError
-from robot_rise.planning.problem import PlanningProblem, select_goal
+from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.to_trajectory import plan_trajectory
 from robot_rise.posture import read_posture
 from robot_rise.trajectory import write_trajectory
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.goal:
         goal = read_posture(args.goal, robot)
     else:  # the library's connecting posture (nearest the key posture when one is given)
-        from robot_rise.rise import RiseContext
+        from robot_rise.rise import RiseContext, select_goal
 
         sel = select_goal(RiseContext.build(robot, args.scene), start, key)
         goal, key = sel.goal, sel.key

@@ -18,7 +18,7 @@ from robot_rise.errors import FormatError
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["PostureSequence", "PlanningProblem", "PlanStatus", "PlanResult", "Planner", "GoalSelection", "select_goal"]
+__all__ = ["PostureSequence", "PlanningProblem", "PlanStatus", "PlanResult", "Planner"]
 
 
 @dataclass(frozen=True)
@@ -124,57 +124,12 @@ class Planner(Protocol):
     def __call__(self, problem: PlanningProblem) -> PlanResult: ...
 
 
-@dataclass(frozen=True)
-class GoalSelection:
-    """Where a plan goes when the user names no goal (``select_goal``).
+def __getattr__(name: str) -> object:
+    """``GoalSelection`` and ``select_goal`` moved to ``robot_rise.rise`` (the planner does not
+    depend on ``rise``); robot_rise/planning/bench_problems.py still imports ``select_goal`` from
+    here. Remove this once it imports it from ``robot_rise.rise``."""
+    if name in ("GoalSelection", "select_goal"):
+        import robot_rise.rise
 
-    Attributes:
-        goal: the connecting posture, placed where the robot lies (or where the key posture is).
-        key: the key posture to pass through, or None (none given, or it IS the connecting posture).
-        source: ``motion@frame (candidate r)`` of the library frame, for messages and reports.
-    """
-
-    goal: Posture
-    key: Posture | None
-    source: str
-
-
-# a key posture this close (planner distance) to its connecting posture is that library posture
-KEY_IN_LIBRARY_DISTANCE = 1e-6
-
-
-def select_goal(ctx: Any, start: Posture, key: Posture | None = None) -> GoalSelection:
-    """The connecting posture a plan goes to, as ``robot-rise rise`` selects it.
-
-    Paper 000 section 4.1: the nearest library posture (eq. 1) to the lying posture; with a key
-    posture the plan passes through it, and "if a key posture is not a posture in our motion
-    database, motion planning is applied again to connect the key posture to a posture in our
-    motion database" (section 5.1): the connecting posture is then the one nearest the KEY
-    posture, placed where the key posture is. Among the nearest frames of the
-    ``robot_rise.rise.DEFAULT_CANDIDATES`` nearest motions (nearest first), the first whose
-    placement is legal is taken (as ``rise`` moves on to its next candidate); if none is, the
-    nearest, so that the planner reports why it is invalid.
-
-    Args:
-        ctx: a ``robot_rise.rise.RiseContext`` (library, frame index, K-means tree, checker of the scene).
-        start: the lying posture.
-        key: optional key posture.
-    """
-    from robot_rise.planning.space import PostureSpace
-    from robot_rise.rise import DEFAULT_CANDIDATES, connecting_posture, connection_candidates
-
-    anchor = key if key is not None else start
-    tried: list[tuple[Posture, str]] = []
-    for rank, conn in enumerate(connection_candidates(ctx.library, ctx.robot, anchor, DEFAULT_CANDIDATES, index=ctx.index, tree=ctx.tree)):
-        goal = connecting_posture(ctx.library, ctx.robot, conn, anchor, ctx.checker)
-        tried.append((goal, f"{conn.motion}@{conn.frame} (candidate {rank})"))
-        if ctx.checker.is_valid(goal):
-            break
-    else:  # no legal placement: the nearest, so that the planner reports why it is invalid
-        goal, _ = tried[0]
-    source = next(s for g, s in tried if g is goal)
-    if key is not None:
-        space = PostureSpace.for_robot(ctx.robot)
-        if float(space.distance(space.state(key), space.state(goal))) < KEY_IN_LIBRARY_DISTANCE:
-            return GoalSelection(key, None, source)  # the key posture is in the library: plan to it
-    return GoalSelection(goal, key, source)
+        return getattr(robot_rise.rise, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
