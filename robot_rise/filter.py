@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from robot_rise.judge import StandVerdict, judge, supported_on_feet, world_contact
-from robot_rise.model import Robot
+from robot_rise.model import Robot, model_index
 from robot_rise.paths import scene_path
 from robot_rise.posture import Posture
 from robot_rise.servo import servo_spec
@@ -84,6 +84,7 @@ SLOPE_MIN_RAD = math.radians(1.0)  # ground tilts below this are treated as leve
 SLOPE_RAMP_S = 0.3  # the ankle offsets are ramped in over this long before the robot is on its feet [s]
 SLOPE_MIN_FEET_S = 0.2  # "on its feet": only the feet touch the ground for at least this long [s]
 SLOPE_LEG_JOINTS = 4  # joints per leg the slope stance adjusts, from the sole up (ankle roll, pitch, knee, hip pitch)
+ANKLE_JOINTS = 2  # joints per leg that take up the ground's tilt, from the sole up (ankle roll, pitch)
 
 # Retargeting (paper 000 section 5.3: a body with other proportions rises on the same library,
 # the dynamics filter adapting the motion; ours: the posture is adapted, not only the timing).
@@ -294,36 +295,24 @@ def ground_tilt_vector(model: mujoco.MjModel, ground_geoms: np.ndarray) -> np.nd
 def _stand_facing_x(robot: Robot, model: mujoco.MjModel) -> mujoco.MjData:
     """Kinematics of the ``stand`` keyframe at zero yaw: the frame of a robot standing facing +x."""
     d = mujoco.MjData(model)
-    idx_root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
-    qa = int(model.jnt_qposadr[int(model.body_jntadr[idx_root])])
-    d.qpos[qa : qa + 7] = [0.0, 0.0, robot.stand_qpos[2], 1.0, 0.0, 0.0, 0.0]
-    for name, value in zip(robot.joint_names, robot.stand_qpos[7:]):
-        d.qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)]] = value
+    stand = Posture(robot.name, np.array([0.0, 0.0, robot.stand_qpos[2]]), np.array([1.0, 0.0, 0.0, 0.0]), dict(zip(robot.joint_names, robot.stand_qpos[7:])))
+    d.qpos[:] = stand.qpos(robot, model_index(model, robot), d.qpos)
     mujoco.mj_kinematics(model, d)
     return d
 
 
 def ankle_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The two hinge joints nearest each sole (the ankle), with their axes in the robot's frame.
+    """The ANKLE_JOINTS hinge joints nearest each sole (:func:`leg_joints`), with their axes in the robot's frame.
 
-    Found from the kinematic tree (the sole sites' bodies and their parents), so a retargeted
-    robot needs no names. Axes are those of the ``stand`` keyframe at zero yaw [unit vectors],
-    i.e. in the frame of a robot standing facing +x.
+    Found from the kinematic tree, so a retargeted robot needs no names. Axes are those of the
+    ``stand`` keyframe at zero yaw [unit vectors], i.e. in the frame of a robot standing facing +x.
     """
     d = _stand_facing_x(robot, model)
-    out: dict[str, np.ndarray] = {}
-    names = set(robot.joint_names)
-    for site in robot.sole_sites:
-        body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)])
-        found = 0
-        while body > 0 and found < 2:
-            for j in range(int(model.body_jntadr[body]), int(model.body_jntadr[body]) + int(model.body_jntnum[body])):
-                jname = model.joint(j).name
-                if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) and jname in names:
-                    out[jname] = d.xaxis[j].copy()
-                    found += 1
-            body = int(model.body_parentid[body])
-    return out
+    return {
+        name: d.xaxis[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)].copy()
+        for joints in leg_joints(robot, model, per_leg=ANKLE_JOINTS).values()
+        for name in joints
+    }
 
 
 def slope_ankle_offsets(axes: dict[str, np.ndarray], tilt_world: np.ndarray, heading_rad: float) -> dict[str, float]:
@@ -380,9 +369,7 @@ def slope_stance_offsets(
         tilt_world: ground tilt rotation vector [rad] (:func:`ground_tilt_vector`).
         heading_rad: the standing robot's yaw [rad].
     """
-    idx_root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
-    qa = int(model.jnt_qposadr[int(model.body_jntadr[idx_root])])
-    qadr = {n: int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in robot.joint_names}
+    idx = model_index(model, robot)
     sites = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
     legs = leg_joints(robot, model)
     free = [n for site in robot.sole_sites for n in legs[site]]
@@ -401,9 +388,8 @@ def slope_stance_offsets(
     offsets.update({k: v for k, v in slope_ankle_offsets(ankle_joints(robot, model), tw, heading_rad).items() if k in offsets})
 
     def residual(off: dict[str, float]) -> np.ndarray:
-        d.qpos[qa : qa + 7] = [0.0, 0.0, 1.0, math.cos(heading_rad / 2), 0.0, 0.0, math.sin(heading_rad / 2)]
-        for n, v in zip(robot.joint_names, base):
-            d.qpos[qadr[n]] = v + off.get(n, 0.0)
+        d.qpos[idx.qpos_root] = [0.0, 0.0, 1.0, math.cos(heading_rad / 2), 0.0, 0.0, math.sin(heading_rad / 2)]
+        d.qpos[idx.qpos_joints] = base + np.array([off.get(n, 0.0) for n in robot.joint_names])
         mujoco.mj_kinematics(model, d)
         r = []
         for sid in sites:
@@ -425,15 +411,18 @@ def slope_stance_offsets(
     return offsets
 
 
-def _feet_from(rec: Recording, until_s: float) -> int | None:
-    """First sample (at most ``until_s``) from which only the feet touch the ground for SLOPE_MIN_FEET_S."""
+def _feet_stretches(rec: Recording) -> list[tuple[int, int]]:
+    """Sample ranges [i, j] "on its feet": only the feet touch the world for at least SLOPE_MIN_FEET_S."""
     if len(rec.t) < 2:
-        return None
+        return []
     need = max(1, int(round(SLOPE_MIN_FEET_S / float(rec.t[1] - rec.t[0]))))
-    on = supported_on_feet(rec).astype(int)
-    runs = np.convolve(on, np.ones(need, dtype=int), mode="valid") == need
-    ks = np.flatnonzero(runs & (rec.t[: runs.size] <= until_s))
-    return int(ks[0]) if ks.size else None
+    return [(i, j) for i, j in _windows(supported_on_feet(rec), rec.t) if j - i + 1 >= need]
+
+
+def _feet_from(rec: Recording, until_s: float) -> int | None:
+    """First sample (at most ``until_s``) from which the robot is on its feet (:func:`_feet_stretches`)."""
+    stretches = _feet_stretches(rec)
+    return stretches[0][0] if stretches and rec.t[stretches[0][0]] <= until_s else None
 
 
 def _heading(root_quat_wxyz: np.ndarray) -> float:
@@ -621,9 +610,7 @@ def describe_fall(rec: Recording, trajectory: Trajectory, violations: list[Viola
         return "nothing played"
     h = rec.torso_height_m / rec.stand_height_m
     k_hi = int(np.argmax(h))
-    dt = float(rec.t[1] - rec.t[0]) if len(rec.t) > 1 else 0.01
-    need = max(1, int(round(SLOPE_MIN_FEET_S / dt)))
-    stretches = [(a, b) for a, b in _windows(supported_on_feet(rec), rec.t) if b - a + 1 >= need]
+    stretches = _feet_stretches(rec)
     parts: list[str] = []
     t_ref: float
     if not stretches:
@@ -682,7 +669,28 @@ def prove(
         by the judge, torque stays within (1 - margin) of the envelope at every physics step,
         and no self-collision occurred.
     """
-    player = player or Player(robot, scene)
+    rec, verdict, report, _ = _prove(
+        robot, trajectory, scene=scene, settings=settings, player=player or Player(robot, scene), start=start, saturation_rad=_saturation_rad(robot)
+    )
+    return rec, verdict, report
+
+
+def _saturation_rad(robot: Robot) -> float:
+    """The smallest saturation error of the robot's servos [rad] (the divergence floor of find_violations)."""
+    return min(servo_spec(sv.model).saturation_error_rad() for sv in robot.servos)
+
+
+def _prove(
+    robot: Robot,
+    trajectory: Trajectory,
+    *,
+    scene: str | os.PathLike[str] | None,
+    settings: FilterSettings,
+    player: Player,
+    start: Posture | None,
+    saturation_rad: float,
+) -> tuple[Recording, StandVerdict, dict[str, Any], list[Violation]]:
+    """:func:`prove`, also returning the recording's violations (:func:`find_violations`, all of them)."""
     rec = player.play(trajectory, start, hold_s=settings.hold_s)
     verdict = judge(rec)
     limit = 1.0 - settings.envelope_margin
@@ -696,9 +704,9 @@ def prove(
     proven = bool(verdict.standing and within and not self_collision)
     problems = []
     diagnosis = ""
+    violations = find_violations(rec, settings, saturation_rad=saturation_rad)
     if not verdict.standing:
-        saturation = min(servo_spec(sv.model).saturation_error_rad() for sv in robot.servos)
-        diagnosis = describe_fall(rec, trajectory, find_violations(rec, settings, saturation_rad=saturation))
+        diagnosis = describe_fall(rec, trajectory, violations)
         problems.append(f"not standing: {verdict.reason} ({diagnosis})")
     if not within:
         worst = rec.joint_names[int(np.argmax(peak_per_joint))]
@@ -731,7 +739,7 @@ def prove(
         "stood_from_s": float(verdict.stood_from_s) if np.isfinite(verdict.stood_from_s) else None,
         **({"diagnosis": diagnosis} if diagnosis else {}),
     }
-    return rec, verdict, report
+    return rec, verdict, report, violations
 
 
 def dynamics_filter(
@@ -760,7 +768,7 @@ def dynamics_filter(
     """
     start = start or commanded.start
     player = Player(robot, scene)
-    saturation = min(servo_spec(s.model).saturation_error_rad() for s in robot.servos)
+    saturation = _saturation_rad(robot)
     current = commanded
     history: list[FilterIteration] = []
     best: tuple[Trajectory, Recording, StandVerdict, dict[str, Any]] | None = None  # best proven so far
@@ -770,15 +778,14 @@ def dynamics_filter(
     slope_pending = float(np.linalg.norm(tilt)) >= SLOPE_MIN_RAD
     slope_info: dict[str, Any] | None = None
     levers = _arm_levers(robot, player.model, player.index.robot_geoms)
-    root_id = mujoco.mj_name2id(player.model, mujoco.mjtObj.mjOBJ_BODY, robot.root_body)
-    trunk = np.flatnonzero(player.model.geom_bodyid[player.index.robot_geoms] == root_id)
+    trunk = np.flatnonzero(player.model.geom_bodyid[player.index.robot_geoms] == player.index.root_body)
     lean_total = np.zeros_like(current.q)
-    lean_left = LEAN_ITERATIONS
+    lean_used = 0  # lean adaptations so far (at most LEAN_ITERATIONS); each one earns an extra iteration
     lean_info: dict[str, Any] | None = None
-    for it in range(1, settings.max_iterations + LEAN_ITERATIONS + 1):
-        if it > settings.max_iterations + (LEAN_ITERATIONS - lean_left):
-            break
-        rec, verdict, report = prove(robot, current, scene=scene, settings=settings, player=player, start=start)
+    it = 0
+    while it < settings.max_iterations + lean_used:
+        it += 1
+        rec, verdict, report, found = _prove(robot, current, scene=scene, settings=settings, player=player, start=start, saturation_rad=saturation)
         if slope_pending and not report["proven"]:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
             slope_pending = False
@@ -789,17 +796,17 @@ def dynamics_filter(
                 last = (current, rec, verdict, report)
                 current, slope_info = turned
                 continue
-        violations = [v for v in find_violations(rec, settings, saturation_rad=saturation) if v.t_start_s <= current.duration_s]
-        if lean_left > 0 and not verdict.standing and current.root is not None and not any(v.kind == "torque" for v in violations):
+        violations = [v for v in found if v.t_start_s <= current.duration_s]
+        if lean_used < LEAN_ITERATIONS and not verdict.standing and current.root is not None and not any(v.kind == "torque" for v in violations):
             # torque first (time scaling changes how the body moves); then a lean other than the library's on arms and feet
             adapted = _adapt_lean(robot, current, rec, levers, trunk, lean_total)
             if adapted is not None:
-                lean_left -= 1
+                lean_used += 1
                 history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, (f"lean on arms and feet adapted (error {math.degrees(adapted[2]):.1f} deg)",)))
                 log.info("filter iteration %d: lean on arms and feet adapted, error %.1f deg", it, math.degrees(adapted[2]))
                 last = (current, rec, verdict, report)
                 current, lean_total = adapted[0], adapted[1]
-                lean_info = {"shoulder_joints": [lv.joint for lv in levers], "max_offset_rad": float(np.max(np.abs(lean_total))), "iterations": LEAN_ITERATIONS - lean_left}
+                lean_info = {"shoulder_joints": [lv.joint for lv in levers], "max_offset_rad": float(np.max(np.abs(lean_total))), "iterations": lean_used}
                 continue
         history.append(
             FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, tuple(v.describe() for v in violations))
