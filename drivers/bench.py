@@ -19,6 +19,8 @@ The emulator stands for servo hardware, which answers on time whatever the host 
 default it runs under ``SCHED_FIFO`` (:data:`EMULATOR_RT_PRIORITY`) when the privilege exists,
 so that its own wake-up delays on a busy machine are not charged to the host. The host keeps
 its normal scheduling unless ``realtime_priority`` is given. The result names both policies.
+As the executor does when it streams, the run holds the kernel's CPU wake-up latency at 0 us
+(:func:`drivers.clock.cpu_wakeup_latency`) where permitted, unless ``cpu_latency_us`` is None.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.clock import SPIN_MARGIN_S, MonotonicClock, realtime_scheduling
+from drivers.clock import SPIN_MARGIN_S, MonotonicClock, cpu_wakeup_latency, realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
 from drivers.group import FEEDBACK_SIZE, ServoGroup
 from drivers.protocol import wire_time_s
@@ -178,7 +180,8 @@ def _timed(fn: Callable[[], object], cycles: int, port: object, emulator_cpu: bo
     return cycles / wall, cpu / cycles
 
 
-def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emulator_cpu: bool) -> _Measured:
+def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emulator_cpu: bool,
+             cpu_latency_us: int | None) -> _Measured:
     group = conn.group
     preflight(group)
     engage(group, watchdog_s=None)
@@ -192,7 +195,8 @@ def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emul
     completed = None
     if jitter_s > 0:
         smap = group.map
-        ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0))
+        ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0,
+                                                                                   cpu_latency_us=cpu_latency_us))
         rep = ex.run(smap.joint_names, np.array([0.0, jitter_s]), np.zeros((2, n_servos)))
         p99, ex_cpu, completed = rep.stats.jitter_p99_s, rep.stats.cpu_mean_s, rep.completed
         wait_cpu = rep.stats.wait_cpu_mean_s
@@ -244,7 +248,7 @@ def host_code_cpu(n_servos: int = 20, *, cycles: int = 2000) -> float:
 def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s: float = 0.0,
               transport: str = "pty", realtime_priority: int | None = None,
               emulator_rt_priority: int | None = EMULATOR_RT_PRIORITY,
-              spin_margin_s: float = SPIN_MARGIN_S) -> BusBenchResult:
+              spin_margin_s: float = SPIN_MARGIN_S, cpu_latency_us: int | None = 0) -> BusBenchResult:
     """Measure one baud rate (see the module docstring).
 
     Args:
@@ -257,6 +261,7 @@ def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s
             (None: the emulator inherits the host's scheduling).
         spin_margin_s: busy-waited end of the host clock's sleeps [s] (the executor's start
             precision against its CPU cost; see :data:`drivers.clock.SPIN_MARGIN_S`).
+        cpu_latency_us: CPU wake-up latency held during the run [us] (None: CPUs idle freely).
     """
     if transport not in TRANSPORTS:
         raise ValueError(f"transport {transport!r} not in {TRANSPORTS}")
@@ -267,19 +272,19 @@ def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s
         with spawn_pty_server(smap.ids, baud_rate=baud_rate, wire_timing=True,
                               rt_priority=emulator_rt_priority) as server:
             emulator = server.scheduling
-            with realtime_scheduling(realtime_priority) as note, \
+            with realtime_scheduling(realtime_priority) as note, cpu_wakeup_latency(cpu_latency_us) as idle, \
                     connect(smap, server.device, clock=MonotonicClock(spin_s=spin_margin_s)) as conn:
-                m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
+                m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False, cpu_latency_us=cpu_latency_us)
                 stats = conn.bus.stats
     else:
         emulator = "in-process"
-        with realtime_scheduling(realtime_priority) as note, \
+        with realtime_scheduling(realtime_priority) as note, cpu_wakeup_latency(cpu_latency_us) as idle, \
                 connect(smap, mock_url_for(smap, wire_timing=True, clock=MonotonicClock(spin_s=spin_margin_s))) as conn:
-            m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
+            m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True, cpu_latency_us=cpu_latency_us)
             stats = conn.bus.stats
     return BusBenchResult(baud_rate, n_servos, transport, m.rate_hz, wire_limit_hz(n_servos, baud_rate), m.cpu_s,
                           m.jitter_p99_s, m.executor_cpu_s, stats.fast_read_failures, stats.timeouts, m.completed,
-                          host_code_cpu(n_servos), note, m.pipelined_rate_hz, m.pipelined_cpu_s, emulator,
+                          host_code_cpu(n_servos), f"{note}, {idle}", m.pipelined_rate_hz, m.pipelined_cpu_s, emulator,
                           m.executor_wait_cpu_s)
 
 
@@ -317,6 +322,8 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints
     p.add_argument("--rt-priority", type=int, metavar="P", help="host under SCHED_FIFO priority P")
     p.add_argument("--emulator-rt-priority", type=int, default=EMULATOR_RT_PRIORITY, metavar="P",
                    help=f"pty emulator under SCHED_FIFO priority P (default {EMULATOR_RT_PRIORITY}; 0: normal)")
+    p.add_argument("--cpu-idle", action="store_true",
+                   help="let CPUs enter deep idle states (default: hold the CPU wake-up latency at 0 us)")
     p.add_argument("--spin-ms", type=float, default=SPIN_MARGIN_S * 1e3,
                    help=f"busy-waited end of each sleep [ms] (default {SPIN_MARGIN_S * 1e3:g})")
     args = p.parse_args(argv)
@@ -324,7 +331,8 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints
         print(format_result(bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds,
                                       transport=args.transport, realtime_priority=args.rt_priority,
                                       emulator_rt_priority=args.emulator_rt_priority or None,
-                                      spin_margin_s=args.spin_ms * 1e-3)), flush=True)
+                                      spin_margin_s=args.spin_ms * 1e-3,
+                                      cpu_latency_us=None if args.cpu_idle else 0)), flush=True)
     return 0
 
 

@@ -13,7 +13,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Protocol, runtime_checkable
 
-__all__ = ["SPIN_MARGIN_S", "Clock", "MonotonicClock", "FakeClock", "realtime_scheduling"]
+__all__ = ["SPIN_MARGIN_S", "CPU_LATENCY_DEVICE", "Clock", "MonotonicClock", "FakeClock", "realtime_scheduling",
+           "cpu_wakeup_latency"]
 
 _log = logging.getLogger(__name__)
 
@@ -25,6 +26,10 @@ _log = logging.getLogger(__name__)
 # spins; it only costs CPU (measured in BENCHMARKS.md, issue 3). Real-time scheduling is the remedy.
 SPIN_MARGIN_S = 0.0003
 _SPIN_S = SPIN_MARGIN_S
+# Linux PM QoS: while a process holds this file open with a value written, no CPU enters an idle
+# state whose exit latency exceeds that value [us] (Documentation/power/pm_qos_interface.rst;
+# cyclictest holds it at 0 for the same reason).
+CPU_LATENCY_DEVICE = "/dev/cpu_dma_latency"
 
 
 @runtime_checkable
@@ -113,3 +118,36 @@ def realtime_scheduling(priority: int | None) -> Iterator[str]:
         yield f"SCHED_FIFO priority {priority}"
     finally:
         os.sched_setscheduler(0, old_policy, old_param)
+
+
+@contextmanager
+def cpu_wakeup_latency(max_us: int | None = 0, *, device: str = CPU_LATENCY_DEVICE) -> Iterator[str]:
+    """Keep every CPU out of idle states slower to leave than ``max_us`` [us] in the block.
+
+    A control loop sleeps most of each cycle and is woken by a timer or by the adapter's reply;
+    from a deep idle state (or, in a VM, a halted virtual CPU) each wake-up costs tens of
+    microseconds, several times per cycle. The PM QoS request (:data:`CPU_LATENCY_DEVICE`) is
+    the standard remedy; it costs power (idle CPUs poll) only while the block runs and is
+    released when it ends, also if the process dies. Without the file or the permission
+    (root, or a udev rule granting it) the block runs unchanged and the note says so.
+    ``None`` does nothing.
+    """
+    if max_us is None:
+        yield "CPU idle states unrestricted"
+        return
+    try:
+        fd = os.open(device, os.O_WRONLY)
+    except OSError as e:
+        _log.info("no CPU wake-up latency request (%s: %s)", device, e.strerror)
+        yield f"CPU idle states unrestricted ({device}: {e.strerror})"
+        return
+    try:
+        os.write(fd, int(max_us).to_bytes(4, "little", signed=True))
+    except OSError as e:
+        os.close(fd)
+        yield f"CPU idle states unrestricted (writing {device}: {e.strerror})"
+        return
+    try:
+        yield f"CPU wake-up latency held at {max_us} us"
+    finally:
+        os.close(fd)

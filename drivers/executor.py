@@ -18,14 +18,14 @@ import logging
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.clock import realtime_scheduling
+from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_scheduling
 from drivers.errors import SafetyError
 from drivers.group import GOAL_PWM, Feedback, ServoGroup
 from drivers.safety import (
@@ -64,6 +64,9 @@ class ExecutorConfig:
         log_path: CSV log of commanded vs present per cycle (None: no log).
         realtime_priority: run the loop under SCHED_FIFO at this priority (1..99; needs root
             or CAP_SYS_NICE, refused with a warning otherwise); None: normal scheduling.
+        cpu_latency_us: while streaming, keep every CPU out of idle states slower to leave
+            than this [us] (Linux PM QoS, :func:`drivers.clock.cpu_wakeup_latency`; skipped with
+            a note where not permitted); None: CPUs idle freely (less power, later wake-ups).
     """
 
     rate_hz: float = 100.0
@@ -75,6 +78,7 @@ class ExecutorConfig:
     recovery_attempts: int = 2
     log_path: Path | None = None
     realtime_priority: int | None = None
+    cpu_latency_us: int | None = 0
 
     def __post_init__(self) -> None:
         if not 1.0 <= self.rate_hz <= 2000.0:
@@ -91,6 +95,8 @@ class ExecutorConfig:
             raise SafetyError(f"recovery attempts {self.recovery_attempts} must be >= 0")
         if self.realtime_priority is not None and not 1 <= self.realtime_priority <= 99:
             raise SafetyError(f"real-time priority {self.realtime_priority} outside 1..99")
+        if self.cpu_latency_us is not None and self.cpu_latency_us < 0:
+            raise SafetyError(f"CPU wake-up latency {self.cpu_latency_us} us must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -153,6 +159,7 @@ class ExecutionReport:
         stop_policy: the policy applied at the end.
         recovery: recovery outcome if one was attempted.
         log_path: where the per-cycle log went.
+        timing: how the loop ran (scheduling policy, CPU wake-up latency request).
     """
 
     completed: bool
@@ -164,6 +171,7 @@ class ExecutionReport:
     recovery: RecoveryReport | None = None
     log_path: Path | None = None
     commands: FloatArray | None = field(default=None, repr=False)
+    timing: str = ""
 
     @property
     def interrupted(self) -> bool:
@@ -247,9 +255,11 @@ class Executor:
 
     def run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
         """Execute; returns a report (faults are reported, not raised)."""
-        with realtime_scheduling(self.config.realtime_priority) as note:
-            _log.info("executor: %s", note)
-            return self._run(joint_names, t, q)
+        # a simulated clock has no wake-ups to make punctual
+        latency_us = self.config.cpu_latency_us if isinstance(self.group.bus.clock, MonotonicClock) else None
+        with realtime_scheduling(self.config.realtime_priority) as sched, cpu_wakeup_latency(latency_us) as idle:
+            _log.info("executor: %s; %s", sched, idle)
+            return replace(self._run(joint_names, t, q), timing=f"{sched}; {idle}")
 
     def _run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
         cfg, group, limits = self.config, self.group, self.limits

@@ -303,3 +303,28 @@ def test_that_a_rate_above_what_the_wire_allows_is_refused_before_streaming(serv
     assert len(_goal_writes(r)) == writes  # nothing streamed
     r.group.fast_read = False  # plain sync read: 20 status packets, a slower cycle
     assert r.group.cycle_wire_time_s() > wire
+
+
+def test_that_streaming_on_a_real_clock_holds_the_cpu_wake_up_latency(servo_map: ServoMap,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    import contextlib
+
+    import drivers.executor as executor_module
+    from drivers.clock import MonotonicClock
+
+    requests: list[int | None] = []
+
+    @contextlib.contextmanager
+    def record(max_us: int | None):
+        requests.append(max_us)
+        yield f"request {max_us}"
+
+    monkeypatch.setattr(executor_module, "cpu_wakeup_latency", record)
+    simulated = _run(_ready(servo_map))
+    assert requests == [None] and simulated.timing == "normal scheduling; request None"
+    real = _ready(servo_map)
+    real.group.bus.clock = MonotonicClock()  # the loop's waits are real; the replies stay instant
+    rep = _run(real, _trajectory(servo_map, amplitude=0.0, duration=0.1))  # servos at rest: mock time is frozen
+    assert requests == [None, 0] and rep.completed and rep.timing.endswith("request 0")
+    _run(real, _trajectory(servo_map, amplitude=0.0, duration=0.1), cpu_latency_us=None)
+    assert requests[-1] is None

@@ -23,6 +23,9 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
                    help="baud rate(s) to measure [bit/s] (default: 1000000 and 4000000)")
     p.add_argument("--rt-priority", type=int, metavar="P",
                    help="run under SCHED_FIFO priority P (1..99; needs root or CAP_SYS_NICE), like chrt -f P")
+    p.add_argument("--cpu-idle", action="store_true",
+                   help="let CPUs enter deep idle states (default: hold the kernel's CPU wake-up latency at "
+                        "0 us where permitted, as the executor does while streaming)")
     p.set_defaults(func=run)
 
 
@@ -31,6 +34,6 @@ def run(args: argparse.Namespace) -> int:
 
     for baud in args.baud or (1_000_000, 4_000_000):
         r = bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds, transport=args.transport,
-                      realtime_priority=args.rt_priority)
+                      realtime_priority=args.rt_priority, cpu_latency_us=None if args.cpu_idle else 0)
         print(format_result(r))
     return 0

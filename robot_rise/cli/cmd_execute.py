@@ -39,6 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--log", metavar="FILE", help="CSV log of commanded vs present per cycle")
     p.add_argument("--rt-priority", type=int, metavar="P",
                    help="stream under SCHED_FIFO priority P (1..99; needs root or CAP_SYS_NICE): less jitter on a busy host")
+    p.add_argument("--cpu-idle", action="store_true",
+                   help="let CPUs enter deep idle states while streaming (default: hold the kernel's CPU "
+                        "wake-up latency at 0 us where permitted, as cyclictest does: punctual cycles)")
     p.add_argument("--twin", action="store_true",
                    help="with --mock: the servos move a MuJoCo simulation of the robot (does it stand?)")
     p.add_argument("--scene", help="scene of the twin (default: the scene the report says it was proven in, else flat)")
@@ -131,7 +134,8 @@ def run(args: argparse.Namespace) -> int:
     config = ExecutorConfig(rate_hz=args.rate, speed=args.speed, approach_s=args.approach,
                             stop_policy=StopPolicy(args.stop),
                             log_path=Path(args.log) if args.log else None,
-                            realtime_priority=args.rt_priority)
+                            realtime_priority=args.rt_priority,
+                            cpu_latency_us=None if args.cpu_idle else 0)
     with connect(smap, port, baud_rate=args.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
@@ -159,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
           f"p99 {s.jitter_p99_s * 1e3:.3f} ms, max {s.jitter_max_s * 1e3:.3f} ms; "
           f"deadline misses {s.deadline_misses}; cycle work {s.work_mean_s * 1e3:.2f} ms mean"
           + (f"; {s.resyncs} stall(s) re-anchored the schedule (motion delayed)" if s.resyncs else ""))
+    if clock is None:
+        print(f"timing: {rep.timing}")
     print(f"max tracking error {rep.max_tracking_error_rad:.4f} rad; safety-clamped cycles {rep.clamped_cycles}")
     for f in rep.faults:
         joint = smap.servos[f.index].joint if 0 <= f.index < len(smap) else "bus"
