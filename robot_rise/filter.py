@@ -45,7 +45,7 @@ import numpy as np
 from robot_rise.judge import StandVerdict, judge, supported_on_feet, world_contact
 from robot_rise.model import Robot, model_index
 from robot_rise.paths import scene_path
-from robot_rise.posture import Posture
+from robot_rise.posture import Posture, yaw_rad
 from robot_rise.servo import servo_spec
 from robot_rise.sim import Player, Recording
 from robot_rise.trajectory import Trajectory
@@ -100,6 +100,9 @@ LEAN_MAX_OFFSET_RAD = 0.6  # total shoulder pitch offset at most [rad]
 LEAN_SMOOTH_S = 0.15  # the lean error is smoothed with a Gaussian of this width [s]
 LEAN_ITERATIONS = 4  # filter iterations that may adapt the lean (on top of max_iterations)
 LEAN_MIN_AXIS = 0.7  # a shoulder pitch joint's axis is at least this much along the body's y axis
+
+# libm's atan2 element-wise: numpy's own arctan2 differs from it in the last bit for some inputs
+_atan2 = np.vectorize(math.atan2, otypes=[float])
 
 
 @dataclass(frozen=True)
@@ -425,13 +428,6 @@ def _feet_from(rec: Recording, until_s: float) -> int | None:
     return stretches[0][0] if stretches and rec.t[stretches[0][0]] <= until_s else None
 
 
-def _heading(root_quat_wxyz: np.ndarray) -> float:
-    """Yaw of the root's +x axis on the ground [rad]."""
-    mat = np.zeros(9)
-    mujoco.mju_quat2Mat(mat, np.asarray(root_quat_wxyz, dtype=float))
-    return math.atan2(mat[3], mat[0])
-
-
 def _turn_stance_to_slope(
     robot: Robot, tr: Trajectory, rec: Recording, model: mujoco.MjModel, tilt_world: np.ndarray
 ) -> tuple[Trajectory, dict[str, Any]] | None:
@@ -442,7 +438,7 @@ def _turn_stance_to_slope(
     if k is None:
         return None
     t_feet = float(rec.t[k])
-    heading = _heading(rec.root_pose[k, 3:])
+    heading = yaw_rad(rec.root_pose[k, 3:])
     final = tr.q[-1, [tr.joint_names.index(n) for n in robot.joint_names]]
     offsets = slope_stance_offsets(robot, model, final, tilt_world, heading)
     w = np.clip((tr.t - (t_feet - SLOPE_RAMP_S)) / SLOPE_RAMP_S, 0.0, 1.0)
@@ -461,13 +457,12 @@ def torso_pitch_rad(root_quat_wxyz: np.ndarray) -> np.ndarray:
     ``atan2(-x_z, z_z)`` of the torso's x and z axes in the world: 0 upright, +pi/2 lying face
     down, -pi/2 lying on the back, whatever the heading.
     """
-    quats = np.atleast_2d(np.asarray(root_quat_wxyz, dtype=float))
-    out = np.empty(len(quats))
-    mat = np.zeros(9)
-    for i, quat in enumerate(quats):
-        mujoco.mju_quat2Mat(mat, quat / np.linalg.norm(quat))
-        out[i] = math.atan2(-mat[6], mat[8])
-    return out
+    quats = np.ascontiguousarray(np.atleast_2d(np.asarray(root_quat_wxyz, dtype=float)))  # contiguous rows: norms summed as np.linalg.norm sums them
+    w, x, y, z = (quats / np.sqrt(quats[:, None, :] @ quats[:, :, None])[:, 0]).T
+    # rotation matrix entries (2, 0) and (2, 2), summed in the order of MuJoCo's mju_quat2Mat
+    x_z = 2 * (x * z - w * y)
+    z_z = (w * w - y * y) - (x * x - z * z)
+    return _atan2(-x_z, z_z)
 
 
 @dataclass(frozen=True)

@@ -37,12 +37,14 @@ __all__ = [
     "yaw_aligned_orientation_distance",
     "quat_multiply",
     "quat_conjugate",
+    "yaw_rad",
     "DEFAULT_LIMIT_TOLERANCE_RAD",
 ]
 
 POSTURE_FORMAT = "robot-rise/posture@1"
 QUAT_NORM_TOLERANCE = 1e-3  # |q| must be 1 within this to count as a unit quaternion
 DEFAULT_LIMIT_TOLERANCE_RAD = 1e-3  # joint angles may exceed limits by this much (rounding)
+YAW_MIN_HORIZONTAL = 1e-3  # yaw_rad: an x axis with less horizontal length than this points up or down [unit]
 
 
 @dataclass(frozen=True)
@@ -245,6 +247,18 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         ],
         axis=-1,
     )
+
+
+def yaw_rad(quat_wxyz: np.ndarray) -> float:
+    """Heading of the body's x axis projected on the ground [rad] (0 if it points straight up or down).
+
+    Args:
+        quat_wxyz: orientation, unit quaternion (w, x, y, z), shape (4,).
+    """
+    w, x, y, z = (float(v) for v in quat_wxyz)
+    x_x = (w * w - y * y) + (x * x - z * z)  # world x of the body's x axis (rotation matrix entry (0, 0)), summed as mju_quat2Mat does
+    x_y = 2 * (x * y + w * z)  # its world y (entry (1, 0))
+    return math.atan2(x_y, x_x) if math.hypot(x_x, x_y) > YAW_MIN_HORIZONTAL else 0.0
 
 
 _QUAT_Z = np.array([0.0, 0.0, 0.0, 1.0])  # rotation by pi about world z

@@ -35,6 +35,7 @@ import numpy as np
 
 from robot_rise.errors import RobotRiseError
 from robot_rise.model import Robot, compose, model_index
+from robot_rise.posture import yaw_rad
 from robot_rise.sim import DEFAULT_HOLD_S, Recording, play
 from robot_rise.trajectory import Trajectory
 
@@ -343,14 +344,6 @@ def _sample_index(rec: Recording, times_s: np.ndarray) -> np.ndarray:
     return idx.astype(int)
 
 
-def _yaw_of(quat_wxyz: np.ndarray) -> float:
-    """Heading of the root's x axis projected on the ground [rad] (0 if it points straight up or down)."""
-    w, x, y, z = quat_wxyz
-    fx = 1 - 2 * (y * y + z * z)
-    fy = 2 * (x * y + w * z)
-    return math.atan2(fy, fx) if math.hypot(fx, fy) > 1e-3 else 0.0
-
-
 def _moving_average(values: np.ndarray, width: int) -> np.ndarray:
     """Centred moving average along axis 0 with edge padding; shape unchanged."""
     if width <= 1 or len(values) < 2:
@@ -380,7 +373,7 @@ def camera_track(robot: Robot, rec: Recording, camera: CameraSpec, times_s: np.n
         el = camera.elevation_deg
     stand_h = float(rec.stand_height_m) if rec.stand_height_m > 0 else 0.28
     distance = DISTANCE_PER_STAND_HEIGHT * stand_h
-    heading_deg = math.degrees(_yaw_of(rec.root_pose[-1, 3:7]))
+    heading_deg = math.degrees(yaw_rad(rec.root_pose[-1, 3:7]))
     z = LOOKAT_HEIGHT_PER_STAND_HEIGHT * stand_h
     root_xy = rec.root_pose[:, :2]
     if camera.name == "fixed":
@@ -709,7 +702,7 @@ def view(
             handle.cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
             handle.cam.trackbodyid = index.root_body
             handle.cam.distance = DISTANCE_PER_STAND_HEIGHT * float(rec.stand_height_m)
-            handle.cam.azimuth = math.degrees(_yaw_of(rec.root_pose[-1, 3:7])) + az_rel
+            handle.cam.azimuth = math.degrees(yaw_rad(rec.root_pose[-1, 3:7])) + az_rel
             handle.cam.elevation = el
         t_wall0 = time.monotonic()
         while handle.is_running():

@@ -15,6 +15,7 @@ from robot_rise.posture import (
     quat_multiply,
     read_posture,
     write_posture,
+    yaw_rad,
 )
 
 
@@ -113,3 +114,14 @@ def test_distance_is_vectorised_over_batches(robot):
     one_by_one = [metric(quats[0], joints[0], q, j) for q, j in zip(quats, joints)]
     assert batch.shape == (50,)
     assert np.allclose(batch, one_by_one)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.4, -2.0, math.pi - 1e-3])
+def test_yaw_is_the_heading_of_the_x_axis_on_the_ground_whatever_the_lean(angle):
+    assert yaw_rad(_yaw(angle)) == pytest.approx(angle, abs=1e-12)
+    pitched = quat_multiply(_yaw(angle), np.array([math.cos(0.3), 0.0, math.sin(0.3), 0.0]))  # then leaning 0.6 rad forward
+    assert yaw_rad(pitched) == pytest.approx(angle, abs=1e-12)
+
+
+def test_yaw_is_zero_when_the_x_axis_points_straight_up():
+    assert yaw_rad(np.array([math.cos(math.pi / 4), 0.0, -math.sin(math.pi / 4), 0.0])) == 0.0
