@@ -73,7 +73,6 @@ __all__ = [
     "leg_joints",
     "SLOPE_MIN_RAD",
     "torso_pitch_rad",
-    "shoulder_pitch_joints",
     "lean_offsets",
 ]
 
@@ -480,7 +479,8 @@ def shoulder_pitch_joints(robot: Robot, model: mujoco.MjModel) -> dict[str, floa
     Arms are the limbs named ``*arm*`` in robot.toml; of an arm's hinges, the one nearest the
     torso whose axis (``stand`` keyframe) is at least LEAN_MIN_AXIS along the torso's y axis.
     With the arm propped on the world, turning it by ``-lean * y`` leans the torso forward by
-    about ``lean``.
+    about ``lean``. Not exported: what ``dynamics_filter`` adapts (its ``lean_adapted`` report), as
+    a name-to-axis view for tests.
     """
     return {a.joint: a.axis_y for a in _arm_levers(robot, model, np.zeros(0, dtype=int))}
 
