@@ -169,13 +169,14 @@ class ServoGroup:
         return ticks
 
     def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None) -> None:
-        """Sync-write the same raw ``value`` to a register span on ``ids`` (default all)."""
+        """Sync-write the same raw ``value`` to a register span on ``ids`` (``None``: every
+        servo; an empty sequence: none, nothing is sent)."""
         data = (int(value) & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
-        self.bus.sync_write(address, size, {sid: data for sid in (ids or self.ids)
-                                            if sid not in self.quarantined})
+        targets = self.ids if ids is None else ids
+        self.bus.sync_write(address, size, {sid: data for sid in targets if sid not in self.quarantined})
 
     def torque(self, on: bool, ids: Sequence[int] | None = None) -> None:
-        """Torque Enable on all (or ``ids``) by sync write."""
+        """Torque Enable on all (``ids`` None) or on ``ids`` only (empty: none) by sync write."""
         self.write_all(TORQUE_ENABLE, 1, int(on), ids)
 
     # ---- reads ----------------------------------------------------------------------------

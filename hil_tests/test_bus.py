@@ -189,3 +189,17 @@ def test_that_a_pipelined_reply_out_of_order_is_drained_before_the_fallback_read
     assert kinds == [Instruction.FAST_SYNC_READ] * 6
     assert rig.bus.stats.stale_replies == 0 and rig.bus.stats.fast_read_failures == 0
     assert rig.bus.port.in_waiting == 0  # no reply left over: each was matched to its own request
+
+
+def test_that_an_empty_id_list_writes_to_no_servo(rig: Rig) -> None:
+    for s in rig.servo_map.servos:
+        rig.bus.write(s.id, 64, b"\x01")
+    start = len(rig.mock.log)
+    rig.group.torque(False, ids=[])
+    rig.group.write_all(65, 1, 1, ids=())
+    assert len(rig.mock.log) == start  # nothing sent at all
+    assert all(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
+    rig.group.torque(False, ids=[3])
+    assert [s.id for s in rig.servo_map.servos if not rig.mock.servo(s.id).torque_on] == [3]
+    rig.group.torque(False)  # None (the default) still means every servo
+    assert not any(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
