@@ -151,13 +151,19 @@ def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = 
 
 
 def apply_ram_settings(group: ServoGroup, ids: list[int]) -> None:
-    """(Re)write the RAM settings: indirect feedback map, status return level, Goal PWM.
+    """(Re)write the RAM settings: Bus Watchdog cleared, indirect feedback map, status return
+    level, Goal PWM.
+
+    The Bus Watchdog is cleared first (0 written): after a host crash it has tripped (reads -1)
+    and the servo refuses every goal write, Goal PWM included, with a Data Range Error until 0
+    is written (e-manual, Bus Watchdog). :func:`engage` arms it again.
 
     Indirect addresses are written with torque off (as EEPROM-like protection may apply).
     """
     bus = group.bus
     for sid in ids:
         table = group.map.by_id(sid).table
+        bus.write_value(sid, table["bus_watchdog"], 0)
         torque = bus.read_value(sid, table["torque_enable"])
         if torque:
             bus.write_value(sid, table["torque_enable"], 0)

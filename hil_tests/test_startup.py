@@ -136,3 +136,19 @@ def test_that_preflight_restores_position_mode_and_a_plain_drive_mode(rig: Rig) 
     changes = {(c.servo_id, c.register, c.old, c.new) for c in preflight(rig.group).changes}
     assert {(4, "operating_mode", 1, 3), (4, "drive_mode", 5, 0)} <= changes
     assert rig.mock.servo(4).get("operating_mode") == 3 and rig.mock.servo(4).get("drive_mode") == 0
+
+
+def test_that_preflight_clears_bus_watchdogs_tripped_by_a_dead_host(rig: Rig) -> None:
+    preflight(rig.group)
+    engage(rig.group, watchdog_s=0.1)
+    rig.clock.advance(0.5)
+    rig.mock.advance()  # the host died: every watchdog trips, goal writes are now refused
+    assert all(rig.mock.servo(s.id).watchdog_tripped for s in rig.servo_map.servos)
+    rig.group.torque(False)
+    rig.mock.plant.set_position(1, 1.0)  # moved by hand while limp
+    rig.mock.advance(rig.clock.now() + 0.01)
+    preflight(rig.group)  # was: "write of 2 bytes at 100 refused: data range error"
+    assert not any(rig.mock.servo(s.id).watchdog_tripped for s in rig.servo_map.servos)
+    engage(rig.group, watchdog_s=0.1)
+    s1 = rig.mock.servo(1)
+    assert s1.torque_on and s1.get("goal_position") == s1.get("present_position")
