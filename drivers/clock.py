@@ -135,17 +135,20 @@ def cpu_wakeup_latency(max_us: int | None = 0, *, device: str = CPU_LATENCY_DEVI
     if max_us is None:
         yield "CPU idle states unrestricted"
         return
+    # the notes are yielded outside the except blocks: an error raised in the block must not
+    # carry this OSError as its context
+    refused = None
+    fd = -1
     try:
         fd = os.open(device, os.O_WRONLY)
-    except OSError as e:
-        _log.info("no CPU wake-up latency request (%s: %s)", device, e.strerror)
-        yield f"CPU idle states unrestricted ({device}: {e.strerror})"
-        return
-    try:
         os.write(fd, int(max_us).to_bytes(4, "little", signed=True))
     except OSError as e:
-        os.close(fd)
-        yield f"CPU idle states unrestricted (writing {device}: {e.strerror})"
+        refused = f"CPU idle states unrestricted ({device}: {e.strerror})"
+        _log.info("no CPU wake-up latency request: %s", refused)
+        if fd >= 0:
+            os.close(fd)
+    if refused is not None:
+        yield refused
         return
     try:
         yield f"CPU wake-up latency held at {max_us} us"

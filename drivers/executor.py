@@ -26,9 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_scheduling
-from drivers.errors import SafetyError
+from drivers.errors import CommunicationError, SafetyError
 from drivers.group import GOAL_PWM, Feedback, ServoGroup
 from drivers.safety import (
+    LIMIT_TOLERANCE_RAD,
     Fault,
     FaultKind,
     SafetyLimits,
@@ -36,16 +37,16 @@ from drivers.safety import (
     approach_path,
     check_start,
     evaluate_feedback,
-    limp_pwm_ramp,
     safe_target,
 )
-from drivers.startup import RecoveryReport, disarm_watchdog, recover
+from drivers.startup import RecoveryReport, arm_watchdog, disarm_watchdog, recover
 
 __all__ = ["ExecutorConfig", "CycleStats", "ExecutionReport", "Executor", "interpolate"]
 
 _log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
+MIN_RATE_HZ = 20.0  # [Hz] slowest control rate accepted
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,11 @@ class ExecutorConfig:
         log_path: CSV log of commanded vs present per cycle (None: no log).
         realtime_priority: run the loop under SCHED_FIFO at this priority (1..99; needs root
             or CAP_SYS_NICE, refused with a warning otherwise); None: normal scheduling.
+        watchdog_s: the Bus Watchdog timeout the caller armed (:func:`drivers.startup.engage`)
+            [s], or None. With it, the rate must feed the watchdog at least twice per timeout,
+            a host stall longer than the timeout (the servos have stopped themselves) is a
+            DEADLINE fault, and the stop clears a tripped watchdog and re-arms it so that its
+            own writes are accepted.
         cpu_latency_us: while streaming, keep every CPU out of idle states slower to leave
             than this [us] (Linux PM QoS, :func:`drivers.clock.cpu_wakeup_latency`; skipped with
             a note where not permitted); None: CPUs idle freely (less power, later wake-ups).
@@ -78,11 +84,21 @@ class ExecutorConfig:
     recovery_attempts: int = 2
     log_path: Path | None = None
     realtime_priority: int | None = None
+    watchdog_s: float | None = None
     cpu_latency_us: int | None = 0
 
     def __post_init__(self) -> None:
-        if not 1.0 <= self.rate_hz <= 2000.0:
-            raise SafetyError(f"rate_hz {self.rate_hz} outside 1..2000 Hz")
+        # below MIN_RATE_HZ each step of the velocity limit becomes a jump the servo makes at
+        # full speed (3 rad/s x 50 ms = 0.15 rad)
+        if not MIN_RATE_HZ <= self.rate_hz <= 2000.0:
+            raise SafetyError(f"rate {self.rate_hz:g} Hz outside {MIN_RATE_HZ:g}..2000 Hz")
+        if self.watchdog_s is not None:
+            if not self.watchdog_s > 0:
+                raise SafetyError(f"watchdog timeout {self.watchdog_s} s must be positive")
+            if 2.0 / self.rate_hz > self.watchdog_s:
+                raise SafetyError(f"rate {self.rate_hz:g} Hz feeds the {self.watchdog_s * 1e3:.0f} ms Bus Watchdog "
+                                  f"less than twice per timeout; the servos would stop themselves",
+                                  hint=f"use a rate of at least {math.ceil(2.0 / self.watchdog_s):.0f} Hz")
         if not 0.0 < self.speed <= 2.0:
             raise SafetyError(f"speed {self.speed} outside (0, 2]")
         if self.approach_s is not None and not (self.approach_s > 0 and math.isfinite(self.approach_s)):
@@ -219,8 +235,8 @@ class Executor:
             (t [s] shape (T',), q [rad] shape (T', n)) in map order, time-scaled by ``speed``.
 
         Raises:
-            SafetyError: bad shapes, or the start is far from the present posture and no
-                approach was requested.
+            SafetyError: bad shapes, a joint outside its limits at present, or the start is far
+                from the present posture and no approach was requested.
         """
         wire_s = self.group.cycle_wire_time_s()
         if self.config.rate_hz * wire_s > 1.0:
@@ -237,6 +253,15 @@ class Executor:
             raise SafetyError("trajectory times must increase strictly")
         if not np.all(np.isfinite(q)):
             raise SafetyError("trajectory contains NaN or infinite angles")
+        present = np.asarray(q_present, dtype=float)
+        outside = np.maximum(present - self.limits.upper_rad, self.limits.lower_rad - present)
+        j = int(np.argmax(outside))
+        if outside[j] > LIMIT_TOLERANCE_RAD:  # the first command, clamped, would jump to the limit
+            raise SafetyError(
+                f"{self.group.map.servos[j].joint} is {outside[j]:.3f} rad outside its limits "
+                f"({self.limits.lower_rad[j]:.3f}..{self.limits.upper_rad[j]:.3f} rad) at present",
+                hint="with torque off (robot-rise servos torque off), move it inside its limits by hand, "
+                     "or correct its limits in the servo map")
         idx = self.group.map.index_of(joint_names)
         qm = q[:, idx]
         tm = (t - t[0]) / self.config.speed
@@ -254,7 +279,8 @@ class Executor:
         return np.concatenate([ta, ta[-1] + 0.01 + tm]), np.vstack([qa, qm])
 
     def run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
-        """Execute; returns a report (faults are reported, not raised)."""
+        """Execute; returns a report (faults, bus and host errors in the loop included, are
+        reported, not raised; a refused start raises :class:`SafetyError` before anything moves)."""
         # a simulated clock has no wake-ups to make punctual
         latency_us = self.config.cpu_latency_us if isinstance(self.group.bus.clock, MonotonicClock) else None
         with realtime_scheduling(self.config.realtime_priority) as sched, cpu_wakeup_latency(latency_us) as idle:
@@ -269,6 +295,7 @@ class Executor:
             missing = [sid for sid, ok in zip(group.ids, fb0.valid) if not ok]
             raise SafetyError(f"no present position from servo(s) {missing}; refusing to start")
         t_run, q_run = self.prepare(joint_names, t, q, fb0.position_rad)
+        pwm_limits = self._pwm_limits()
         dt = 1.0 / cfg.rate_hz
         t_end = float(t_run[-1]) + cfg.hold_s
         n_cycles = int(math.floor(t_end / dt)) + 1
@@ -293,6 +320,7 @@ class Executor:
         k = 0
         resyncs = 0
         t0 = clock.now()
+        t_origin = last_sent = t0
         try:
             for k in range(max_cycles):
                 t_nominal = t0 + k * dt
@@ -303,6 +331,12 @@ class Executor:
                 wait_cpu.append(time.thread_time() - w0)
                 start = clock.now()
                 lateness.append(start - t_nominal)
+                if cfg.watchdog_s is not None and start - last_sent > cfg.watchdog_s:
+                    faults = [Fault(FaultKind.DEADLINE, -1, start - last_sent, cfg.watchdog_s,
+                                    f"host stalled {(start - last_sent) * 1e3:.0f} ms, longer than the "
+                                    f"{cfg.watchdog_s * 1e3:.0f} ms Bus Watchdog: the servos stopped themselves")]
+                    _log.error("abort: %s", faults[0].message)
+                    break
                 if start - t_nominal > dt:
                     # a stall (host or bus) cost whole periods: re-anchor the schedule instead of
                     # running the missed cycles back to back, which would move the servos faster
@@ -315,6 +349,7 @@ class Executor:
                 q_cmd, clamped = safe_target(q_des, q_prev, limits, dt)
                 clamped_cycles += clamped
                 group.write_goals(q_cmd, defer=True)  # leaves with the feedback read
+                last_sent = clock.now()  # the watchdogs are fed when these packets arrive
                 fb = group.read_feedback()
                 for sid in group.readmitted:  # back from quarantine: restart from where it is
                     j = group.ids.index(sid)
@@ -330,7 +365,7 @@ class Executor:
                 elif fb.valid.any():
                     max_track = max(max_track, float(np.max(np.abs(fb.position_rad - q_tracked)[fb.valid])))
                 if log:
-                    log.row(k, start - t0, q_cmd, fb)
+                    log.row(k, start - t_origin, q_cmd, fb)  # wall time: stalls show
                 q_prev, q_tracked, last_fb = q_cmd, q_cmd, fb
                 cpu.append(time.thread_time() - c0 - (getattr(port, "emulator_time_s", 0.0) - e0))
                 work.append(clock.now() - start)
@@ -344,10 +379,22 @@ class Executor:
         except KeyboardInterrupt:
             faults = [Fault(FaultKind.INTERRUPTED, -1, 0, 0, "interrupted by the operator")]
             _log.warning("interrupted: stopping by policy %s", cfg.stop_policy.value)
+        except CommunicationError as e:  # the port itself failed (unplugged adapter, write timeout)
+            faults = [Fault(FaultKind.COMMUNICATION, -1, 0, 0, f"bus: {e}")]
+            _log.error("abort: %s", faults[0].message)
+        except Exception as e:  # noqa: BLE001 - a host error must still end in a controlled stop
+            faults = [Fault(FaultKind.HOST, -1, 0, 0, f"host error in the control loop: {type(e).__name__}: {e}")]
+            _log.exception("abort: %s", faults[0].message)
         finally:
             if log:
                 log.close()
-        recovery = self._stop(last_fb, faults)
+        hold = q_prev if not faults and commands else None  # a normal end holds the final command
+        try:
+            recovery = self._stop(last_fb, faults, pwm_limits, hold)
+        except Exception as e:  # noqa: BLE001 - report it; the servos' watchdog is the last resort
+            _log.exception("the stop could not complete")
+            faults = [*faults, Fault(FaultKind.COMMUNICATION, -1, 0, 0, f"the stop could not complete: {e}")]
+            recovery = None
         stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs, wait_cpu=wait_cpu)
         if resyncs:
             _log.warning("%d stall(s) longer than a period: schedule re-anchored, motion delayed", resyncs)
@@ -355,24 +402,47 @@ class Executor:
                                cfg.stop_policy, recovery, cfg.log_path,
                                np.array(commands) if commands else None)
 
-    def _stop(self, fb: Feedback, faults: list[Fault]) -> RecoveryReport | None:
-        """Controlled stop by policy; never a jump (targets are the present positions)."""
+    def _pwm_limits(self) -> dict[int, int]:
+        """Each servo's PWM Limit (the Goal PWM the RAM settings gave it): the LIMP ramp's start."""
+        bus, out = self.group.bus, {}
+        for servo in self.group.map.servos:
+            reg = servo.table["pwm_limit"]
+            try:
+                out[servo.id] = bus.read_value(servo.id, reg)
+            except CommunicationError:  # quarantined or silent now: the table's default
+                out[servo.id] = int(servo.table.defaults.get("pwm_limit", 0))
+        return out
+
+    def _stop(self, fb: Feedback, faults: list[Fault], pwm_limits: dict[int, int],
+              hold_rad: FloatArray | None = None) -> RecoveryReport | None:
+        """Controlled stop by policy; never a jump: the targets are the present positions, or
+        ``hold_rad`` (the final command, within one step of them) at a normal end, where goal =
+        present would let a loaded joint sag by its position loop's steady-state error."""
         group, cfg = self.group, self.config
         clock = group.bus.clock
         dt = 1.0 / cfg.rate_hz
+        # a tripped Bus Watchdog refuses goal and PWM writes: clear it first (re-armed, so the
+        # servos still stop themselves if the host dies during a LIMP ramp)
+        if cfg.watchdog_s is not None:
+            arm_watchdog(group, cfg.watchdog_s)
+        else:
+            disarm_watchdog(group)
         try:
             now_fb = group.read_feedback()
         except Exception:  # noqa: BLE001 - stopping must go on with what we have
             now_fb = fb
-        hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad)
+        hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad) if hold_rad is None else hold_rad
         ok = np.isfinite(hold)
         skip = [sid for sid, good in zip(group.ids, ok) if not good]
         group.write_goals(np.where(ok, hold, 0.0), skip=skip)
         recovery = None
         if cfg.stop_policy is StopPolicy.LIMP:
-            for pwm in limp_pwm_ramp(885, cfg.limp_s, dt):
+            n = max(1, int(math.ceil(cfg.limp_s / dt)))
+            for fraction in np.linspace(1.0, 0.0, n + 1)[1:]:  # each servo from its own PWM Limit
                 try:
-                    group.write_all(GOAL_PWM, 2, int(pwm))
+                    group.bus.sync_write(GOAL_PWM, 2, {sid: int(round(lim * fraction)).to_bytes(2, "little")
+                                                       for sid, lim in pwm_limits.items()
+                                                       if sid not in group.quarantined})
                     clock.sleep(dt)
                 except KeyboardInterrupt:  # a second Ctrl-C must not cut the slow limp short
                     _log.warning("stop in progress: finishing the limp ramp (%.1f s)", cfg.limp_s)

@@ -59,6 +59,7 @@ class FaultKind(enum.Enum):
     COMMUNICATION = "communication"
     INTERRUPTED = "interrupted"
     DEADLINE = "deadline"
+    HOST = "host error"
 
 
 @dataclass(frozen=True)

@@ -61,3 +61,10 @@ def test_that_no_latency_request_touches_nothing(tmp_path: Path) -> None:
     with cpu_wakeup_latency(None, device=str(device)) as note:
         assert note == "CPU idle states unrestricted"
     assert not device.exists()
+
+
+def test_that_an_error_in_the_block_does_not_carry_the_refused_request(tmp_path: Path) -> None:
+    with pytest.raises(ValueError) as raised:
+        with cpu_wakeup_latency(0, device=str(tmp_path / "absent")):
+            raise ValueError("the loop's own error")
+    assert raised.value.__context__ is None

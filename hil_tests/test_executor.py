@@ -58,16 +58,18 @@ def _goal_writes(r: Rig) -> list[dict[int, int]]:
 def _assert_goals_safe(r: Rig) -> None:
     """Every goal inside the limits; every streamed goal within one step of the previous one.
 
-    The final write of a stop is goal = present position, which may differ from the last
-    command by the tracking lag; it is checked against the present position instead.
+    The final write of a stop after a fault is goal = present position, which may differ from
+    the last command by the tracking lag; at a normal end it is the last command again. It is
+    checked against both.
     """
     step_ticks = math.ceil(MAX_V / RATE / RAD_PER_TICK) + 1
     last: dict[int, int] = {}
     writes = _goal_writes(r)
+    streamed = writes[-2] if len(writes) > 1 else {}
     for sid, tick in writes[-1].items():
         lo, hi = r.servo_map.by_id(sid).limit_ticks
         assert lo <= tick <= hi
-        assert abs(tick - r.mock.servo(sid).get("present_position")) <= 3
+        assert abs(tick - r.mock.servo(sid).get("present_position")) <= 3 or tick == streamed.get(sid)
     for sid, tick in ((s, t) for w in writes[:-1] for s, t in w.items()):
         lo, hi = r.servo_map.by_id(sid).limit_ticks
         assert lo <= tick <= hi, f"servo {sid}: goal {tick} outside {lo}..{hi}"
@@ -328,3 +330,66 @@ def test_that_streaming_on_a_real_clock_holds_the_cpu_wake_up_latency(servo_map:
     assert requests == [None, 0] and rep.completed and rep.timing.endswith("request 0")
     _run(real, _trajectory(servo_map, amplitude=0.0, duration=0.1), cpu_latency_us=None)
     assert requests[-1] is None
+
+
+def _pwm_accepted(r: Rig) -> list[int]:
+    return [r.mock.servo(s).get("goal_pwm") for s in r.servo_map.ids]
+
+
+def test_that_a_joint_outside_its_limits_is_refused_before_anything_moves(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    ex = Executor(r.group, r.limits(max_velocity_rad_s=MAX_V), ExecutorConfig(rate_hz=RATE, approach_s=2.0))
+    names, t, q = _trajectory(servo_map)
+    present = np.zeros(len(servo_map))
+    present[3] = servo_map.upper_rad[3] + 0.3  # posed by hand past its limit
+    with pytest.raises(SafetyError, match=f"{servo_map.servos[3].joint} is 0.300 rad outside its limits"):
+        ex.prepare(names, t, q, present)
+    present[3] = servo_map.upper_rad[3] + 0.01  # within the tolerance: accepted, then clamped
+    ex.prepare(names, t, q, present)
+
+
+def test_that_a_limp_stop_after_a_watchdog_trip_still_ramps_the_servos_down(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)  # watchdog armed at 0.1 s
+    r.mock.faults.at(r.clock.now() + 0.5, lambda bus: bus.clock.advance(0.25))  # the host stalls
+    rep = _run(r, _trajectory(servo_map, amplitude=0.6, duration=2.0),
+               stop_policy=StopPolicy.LIMP, limp_s=0.5, watchdog_s=0.1)
+    assert [f.kind for f in rep.faults] == [FaultKind.DEADLINE] and "Bus Watchdog" in rep.faults[0].message
+    # the servos accepted the ramp (a tripped watchdog refuses Goal PWM): it ended at 0, slowly
+    assert _pwm_accepted(r) == [0] * len(servo_map)
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)
+    assert all(r.mock.servo(s).get("bus_watchdog") == 0 for s in servo_map.ids)
+
+
+@pytest.mark.parametrize("error, kind", [(OSError("adapter unplugged"), FaultKind.COMMUNICATION),
+                                         (RuntimeError("a bug"), FaultKind.HOST)])
+def test_that_an_error_in_the_loop_ends_in_the_policy_stop_and_is_reported(
+        servo_map: ServoMap, error: Exception, kind: FaultKind) -> None:
+    r = _ready(servo_map)
+
+    def fail(bus) -> None:
+        raise error
+
+    r.mock.faults.at(r.clock.now() + 0.3, fail)
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.3, watchdog_s=0.1)
+    assert not rep.completed and [f.kind for f in rep.faults] == [kind] and str(error) in rep.faults[0].message
+    assert _pwm_accepted(r) == [0] * len(servo_map)
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)
+    assert all(r.mock.servo(s).get("bus_watchdog") == 0 for s in servo_map.ids)
+    _assert_goals_safe(r)
+
+
+def test_that_a_normal_end_holds_the_final_command_not_the_sagging_present(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    rep = _run(r)
+    assert rep.completed
+    writes = _goal_writes(r)
+    assert writes[-1] == writes[-2]  # goal = present would lower a loaded joint by its steady-state error
+
+
+@pytest.mark.parametrize("config, message", [
+    (dict(rate_hz=10.0), "outside 20..2000 Hz"),
+    (dict(rate_hz=25.0, watchdog_s=0.06), "less than twice per timeout"),
+])
+def test_that_rates_that_jump_or_starve_the_watchdog_are_refused(config: dict, message: str) -> None:
+    with pytest.raises(SafetyError, match=message):
+        ExecutorConfig(**config)  # type: ignore[arg-type]

@@ -17,6 +17,7 @@ EPILOG = """examples:
   robot-rise execute getup.json --port /dev/ttyUSB0 --speed 0.5 --approach 3 --log run.csv
 exit code: 0 only if the whole trajectory ran without a fault; 1 on a fault; 2 on refused input.
 """
+WATCHDOG_S = 0.1  # [s] Bus Watchdog armed while streaming: the servos stop if the host goes silent
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from drivers.clock import FakeClock
+    from drivers.errors import CommunicationError
     from drivers.executor import Executor, ExecutorConfig
     from drivers.safety import SafetyLimits, StopPolicy, check_limits
     from drivers.servo_map import load_servo_map
@@ -135,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
                             stop_policy=StopPolicy(args.stop),
                             log_path=Path(args.log) if args.log else None,
                             realtime_priority=args.rt_priority,
-                            cpu_latency_us=None if args.cpu_idle else 0)
+                            watchdog_s=WATCHDOG_S, cpu_latency_us=None if args.cpu_idle else 0)
     with connect(smap, port, baud_rate=args.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
@@ -153,11 +155,14 @@ def run(args: argparse.Namespace) -> int:
             if answer.strip().lower() not in ("y", "yes"):
                 print("aborted; nothing moved")
                 return 2
-        engage(conn.group, watchdog_s=0.1)
+        engage(conn.group, watchdog_s=WATCHDOG_S)
         try:
             rep = executor.run(traj.joint_names, traj.t, traj.q)
         finally:
-            disarm_watchdog(conn.group)
+            try:
+                disarm_watchdog(conn.group)
+            except CommunicationError as e:  # keep the run's own outcome; the stop already ran
+                print(f"warning: could not disarm the Bus Watchdog: {e}", file=sys.stderr)
     s = rep.stats
     print(f"cycles {s.cycles} at {1 / s.period_s:.0f} Hz; jitter p50 {s.jitter_p50_s * 1e3:.3f} ms, "
           f"p99 {s.jitter_p99_s * 1e3:.3f} ms, max {s.jitter_max_s * 1e3:.3f} ms; "
