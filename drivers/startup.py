@@ -158,23 +158,38 @@ def apply_ram_settings(group: ServoGroup, ids: list[int]) -> None:
     and the servo refuses every goal write, Goal PWM included, with a Data Range Error until 0
     is written (e-manual, Bus Watchdog). :func:`engage` arms it again.
 
-    Indirect addresses are written with torque off (as EEPROM-like protection may apply).
+    The indirect map is written only where it differs (see :func:`_map_indirect_block`), so a
+    servo that is holding and already mapped never goes limp.
     """
     bus = group.bus
     for sid in ids:
         table = group.map.by_id(sid).table
         bus.write_value(sid, table["bus_watchdog"], 0)
-        torque = bus.read_value(sid, table["torque_enable"])
-        if torque:
-            bus.write_value(sid, table["torque_enable"], 0)
         if group.use_indirect:
-            items = group.indirect_address_items()
-            blob = b"".join(d for _, d in items)
-            bus.write(sid, items[0][0], blob)
+            _map_indirect_block(group, sid)
         bus.write_value(sid, table["status_return_level"], 2)
         bus.write_value(sid, table["goal_pwm"], bus.read_value(sid, table["pwm_limit"]))
-        if torque:
-            bus.write_value(sid, table["torque_enable"], 1)
+
+
+def _map_indirect_block(group: ServoGroup, sid: int) -> None:
+    """Point servo ``sid``'s indirect addresses at the feedback block, unless they already do.
+
+    They are written with torque off (as EEPROM-like protection may apply), and torque is
+    restored if it was on; when the map already matches nothing is written.
+    """
+    bus = group.bus
+    table = group.map.by_id(sid).table
+    items = group.indirect_address_items()
+    address, blob = items[0][0], b"".join(d for _, d in items)
+    _, present = bus.read(sid, address, len(blob))
+    if present == blob:
+        return
+    torque = bus.read_value(sid, table["torque_enable"])
+    if torque:
+        bus.write_value(sid, table["torque_enable"], 0)
+    bus.write(sid, address, blob)
+    if torque:
+        bus.write_value(sid, table["torque_enable"], 1)
 
 
 def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 
 from drivers.control_table import HardwareError
 from drivers.errors import PreflightError
+from drivers.protocol import Instruction
 from drivers.servo_map import ServoMap
 from drivers.startup import arm_watchdog, engage, preflight, recover
 from hil_tests.conftest import Rig, make_rig
@@ -152,3 +155,35 @@ def test_that_preflight_clears_bus_watchdogs_tripped_by_a_dead_host(rig: Rig) ->
     engage(rig.group, watchdog_s=0.1)
     s1 = rig.mock.servo(1)
     assert s1.torque_on and s1.get("goal_position") == s1.get("present_position")
+
+
+def _torque_writes(r: Rig, start: int) -> list[tuple[int, int]]:
+    """(servo id, value) of every Torque Enable write (plain or sync) in the log from ``start``."""
+    out = []
+    for p in r.mock.log[start:]:
+        if p.instruction == Instruction.WRITE and struct.unpack_from("<H", p.params)[0] == 64:
+            out.append((p.servo_id, p.params[2]))
+        elif p.instruction == Instruction.SYNC_WRITE and struct.unpack_from("<HH", p.params) == (64, 1):
+            out.extend((p.params[k], p.params[k + 1]) for k in range(4, len(p.params), 2))
+    return out
+
+
+def test_that_preflight_leaves_torque_on_when_the_indirect_map_is_already_right(rig: Rig) -> None:
+    preflight(rig.group)
+    engage(rig.group, watchdog_s=None)  # the robot is being held
+    start = len(rig.mock.log)
+    assert preflight(rig.group).changes == ()
+    assert _torque_writes(rig, start) == []  # never went limp, not even briefly
+    assert all(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
+
+
+def test_that_preflight_rewrites_a_wrong_indirect_map_and_restores_torque(rig: Rig) -> None:
+    preflight(rig.group)
+    engage(rig.group, watchdog_s=None)
+    rig.bus.write(7, 168, b"\x00\x00")  # Indirect Address 1 no longer points at Present Position
+    start = len(rig.mock.log)
+    preflight(rig.group)
+    assert _torque_writes(rig, start) == [(7, 0), (7, 1)]
+    assert all(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
+    fb = rig.group.read_feedback()
+    assert fb.valid.all() and np.allclose(fb.position_rad, 0.0, atol=1e-2)
