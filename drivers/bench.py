@@ -34,15 +34,14 @@ import numpy as np
 
 from drivers.clock import SPIN_MARGIN_S, MonotonicClock, cpu_wakeup_latency, realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
-from drivers.group import FEEDBACK_SIZE, ServoGroup
-from drivers.protocol import wire_time_s
+from drivers.group import ServoGroup
 from drivers.safety import SafetyLimits
 from drivers.servo_map import BusSpec, ServoMap, ServoSpec
 from drivers.session import Connection, connect, mock_url_for
 from drivers.startup import engage, preflight
 
 __all__ = ["EMULATOR_RT_PRIORITY", "BusBenchResult", "bench_bus", "pipelined_cycles", "host_code_cpu",
-           "wire_limit_hz", "format_result", "main"]
+           "format_result", "main"]
 
 TRANSPORTS = ("pty", "inprocess")
 EMULATOR_RT_PRIORITY = 20  # SCHED_FIFO priority of the emulator process (servo hardware is punctual)
@@ -104,13 +103,6 @@ def _map(n: int, baud: int) -> ServoMap:
     return ServoMap("bench", BusSpec(baud, 0.0), servos)
 
 
-def wire_limit_hz(n_servos: int, baud_rate: int) -> float:
-    """Cycles per second the wire allows: goal sync write + fast sync read of the feedback block."""
-    write_b = 14 + 5 * n_servos
-    read_b = (10 + 4 + n_servos) + 8 + n_servos * (4 + FEEDBACK_SIZE)
-    return 1.0 / wire_time_s(write_b + read_b, baud_rate)
-
-
 @dataclass(frozen=True)
 class _Measured:
     rate_hz: float
@@ -121,6 +113,7 @@ class _Measured:
     executor_cpu_s: float | None
     executor_wait_cpu_s: float | None
     completed: bool | None
+    wire_limit_hz: float  # 1 / the wire time of the cycle the group runs (fast or plain read)
 
 
 def _sequential(group: ServoGroup, q: np.ndarray, cycles: int) -> None:
@@ -180,8 +173,7 @@ def _timed(fn: Callable[[], object], cycles: int, port: object, emulator_cpu: bo
     return cycles / wall, cpu / cycles
 
 
-def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emulator_cpu: bool,
-             cpu_latency_us: int | None) -> _Measured:
+def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emulator_cpu: bool) -> _Measured:
     group = conn.group
     preflight(group)
     engage(group, watchdog_s=None)
@@ -196,11 +188,11 @@ def _measure(conn: Connection, n_servos: int, cycles: int, jitter_s: float, emul
     if jitter_s > 0:
         smap = group.map
         ex = Executor(group, SafetyLimits(smap.lower_rad, smap.upper_rad), ExecutorConfig(rate_hz=100.0, hold_s=0.0,
-                                                                                   cpu_latency_us=cpu_latency_us))
+                                                                                   cpu_latency_us=None))  # bench_bus holds it
         rep = ex.run(smap.joint_names, np.array([0.0, jitter_s]), np.zeros((2, n_servos)))
         p99, ex_cpu, completed = rep.stats.jitter_p99_s, rep.stats.cpu_mean_s, rep.completed
         wait_cpu = rep.stats.wait_cpu_mean_s
-    return _Measured(rate, cpu, p_rate, p_cpu, p99, ex_cpu, wait_cpu, completed)
+    return _Measured(rate, cpu, p_rate, p_cpu, p99, ex_cpu, wait_cpu, completed, 1.0 / group.cycle_wire_time_s())
 
 
 class _InstantPort:
@@ -274,15 +266,15 @@ def bench_bus(baud_rate: int, *, n_servos: int = 20, cycles: int = 500, jitter_s
             emulator = server.scheduling
             with realtime_scheduling(realtime_priority) as note, cpu_wakeup_latency(cpu_latency_us) as idle, \
                     connect(smap, server.device, clock=MonotonicClock(spin_s=spin_margin_s)) as conn:
-                m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False, cpu_latency_us=cpu_latency_us)
+                m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=False)
                 stats = conn.bus.stats
     else:
         emulator = "in-process"
         with realtime_scheduling(realtime_priority) as note, cpu_wakeup_latency(cpu_latency_us) as idle, \
                 connect(smap, mock_url_for(smap, wire_timing=True, clock=MonotonicClock(spin_s=spin_margin_s))) as conn:
-            m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True, cpu_latency_us=cpu_latency_us)
+            m = _measure(conn, n_servos, cycles, jitter_s, emulator_cpu=True)
             stats = conn.bus.stats
-    return BusBenchResult(baud_rate, n_servos, transport, m.rate_hz, wire_limit_hz(n_servos, baud_rate), m.cpu_s,
+    return BusBenchResult(baud_rate, n_servos, transport, m.rate_hz, m.wire_limit_hz, m.cpu_s,
                           m.jitter_p99_s, m.executor_cpu_s, stats.fast_read_failures, stats.timeouts, m.completed,
                           host_code_cpu(n_servos), f"{note}, {idle}", m.pipelined_rate_hz, m.pipelined_cpu_s, emulator,
                           m.executor_wait_cpu_s)

@@ -25,7 +25,6 @@ _log = logging.getLogger(__name__)
 # 1/HZ = 4 ms on the benchmark VM) however early it wakes, and it may be preempted while it
 # spins; it only costs CPU (measured in BENCHMARKS.md, issue 3). Real-time scheduling is the remedy.
 SPIN_MARGIN_S = 0.0003
-_SPIN_S = SPIN_MARGIN_S
 # Linux PM QoS: while a process holds this file open with a value written, no CPU enters an idle
 # state whose exit latency exceeds that value [us] (Documentation/power/pm_qos_interface.rst;
 # cyclictest holds it at 0 for the same reason).
@@ -52,7 +51,7 @@ class MonotonicClock:
         spin_s: the last part of every sleep is busy-waited for precision [s]; 0 disables it.
     """
 
-    def __init__(self, *, spin_s: float = _SPIN_S) -> None:
+    def __init__(self, *, spin_s: float = SPIN_MARGIN_S) -> None:
         self._spin_s = spin_s
 
     def now(self) -> float:

@@ -41,7 +41,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivers.clock import MonotonicClock, realtime_scheduling
+from drivers.clock import SPIN_MARGIN_S, MonotonicClock, realtime_scheduling
 from drivers.mockbus.bus import MockBus
 from drivers.mockbus.protocol_dxlsim import parse_ids
 
@@ -60,7 +60,6 @@ _log = logging.getLogger(__name__)
 DEVICE_LINE_PREFIX = "DEVICE "  # first stdout line of the standalone server: "DEVICE /dev/pts/N"
 _IDLE_STEP_S = 0.01  # [s] the emulator (plant, watchdogs) advances at least this often when idle
 _READ_CHUNK = 4096  # [bytes]
-_SPIN_S = 0.0003  # [s] last stretch before a reply's wire time that is polled (select oversleeps)
 _BAUD_BY_TERMIOS: dict[int, int] = {
     getattr(termios, f"B{rate}"): rate
     for rate in (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600,
@@ -177,7 +176,7 @@ class PtyServer:
                 break
             timeout = self.idle_step_s
             if pending:
-                timeout = min(timeout, max(0.0, pending[0][0] - now - _SPIN_S))
+                timeout = min(timeout, max(0.0, pending[0][0] - now - SPIN_MARGIN_S))
             try:
                 readable, _, _ = select.select([master], [], [], timeout)
             except (OSError, ValueError):  # closed under us
@@ -188,7 +187,7 @@ class PtyServer:
                     self._handle(data, pending)
                     last_advance = clock.now()
             now = clock.now()
-            if pending and pending[0][0] - now <= _SPIN_S:
+            if pending and pending[0][0] - now <= SPIN_MARGIN_S:
                 while pending[0][0] > clock.now():  # the last stretch: poll for precision
                     pass
                 self._flush_due(master, pending)
