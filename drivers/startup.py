@@ -5,7 +5,8 @@ EEPROM settings we depend on (operating mode, return delay, position limits, dri
 write only those that differ, with torque off; map the indirect feedback block; decide whether
 Fast Sync Read can be used (every servo's firmware must support it).
 
-Engage (:func:`engage`): goal = present position, then torque on, then arm the Bus Watchdog.
+Engage (:func:`engage`): refuse a joint outside its limits; goal = present position, read back;
+then torque on, then arm the Bus Watchdog.
 
 Recovery (:func:`recover`): a bounded number of attempts per servo: reboot, wait, ping,
 re-apply the RAM settings, goal = present, torque on.
@@ -17,10 +18,14 @@ import logging
 import struct
 from dataclasses import dataclass, field
 
+import numpy as np
+from numpy.typing import NDArray
+
 from drivers.bus import PingResult
 from drivers.control_table import WATCHDOG_UNIT_S, HardwareError, model_for_number
-from drivers.errors import CommunicationError, PreflightError, ServoStatusError
+from drivers.errors import CommunicationError, PreflightError, SafetyError, ServoStatusError
 from drivers.group import BUS_WATCHDOG, GOAL_POSITION, TORQUE_ENABLE, ServoGroup
+from drivers.safety import LIMIT_TOLERANCE_RAD
 from drivers.servo_map import ServoSpec
 
 __all__ = [
@@ -40,6 +45,7 @@ _log = logging.getLogger(__name__)
 
 POSITION_MODE = 3
 DRIVE_MODE_TIME_BASED = 0x04  # bit 2: time-based profile; we need velocity-based (cleared)
+GOAL_READBACK_TOLERANCE_TICKS = 2  # [ticks] goal read back after goal = present, vs. the ticks written
 
 
 @dataclass(frozen=True)
@@ -195,17 +201,62 @@ def _map_indirect_block(group: ServoGroup, sid: int) -> None:
 def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:
     """Goal = present position, torque on, then arm the Bus Watchdog (``None`` to skip).
 
+    Torque comes on only when every servo provably holds where it is: no present position lies
+    beyond its servo-map limits by more than ``LIMIT_TOLERANCE_RAD`` (a servo refuses a goal
+    outside its Min/Max Position Limit, silently in a sync write, and would then drive to an
+    old goal), a position within that tolerance is held at the limit, and the Goal Position
+    read back matches what was written (:func:`_check_goals_taken`).
+
     Raises:
-        CommunicationError: a servo did not report its position.
+        CommunicationError: a servo did not report its position or goal.
+        SafetyError: a joint is outside its limits, or a servo did not take goal = present;
+            torque stays off.
     """
     fb = group.read_feedback()
     if not fb.valid.all():
         missing = [sid for sid, ok in zip(group.ids, fb.valid) if not ok]
         raise CommunicationError(f"no present position from servo(s) {missing}; not engaging")
-    group.write_goals(fb.position_rad)
+    _check_inside_limits(group, fb.position_rad)
+    smap = group.map
+    ticks = group.write_goals(np.clip(fb.position_rad, smap.lower_rad, smap.upper_rad))
+    _check_goals_taken(group, ticks)
     group.torque(True)
     if watchdog_s is not None:
         arm_watchdog(group, watchdog_s)
+
+
+def _check_inside_limits(group: ServoGroup, q_rad: NDArray[np.float64]) -> None:
+    """Refuse to engage if a present position ``q_rad`` [rad], shape (n,), lies beyond its
+    servo-map limit by more than ``LIMIT_TOLERANCE_RAD``."""
+    smap = group.map
+    lower, upper = smap.lower_rad, smap.upper_rad
+    outside = np.flatnonzero(np.maximum(q_rad - upper, lower - q_rad) > LIMIT_TOLERANCE_RAD)
+    if outside.size:
+        joints = "; ".join(f"{smap.servos[k].joint} (id {smap.servos[k].id}) at {q_rad[k]:.2f} rad, "
+                           f"limits {lower[k]:.2f}..{upper[k]:.2f}" for k in outside)
+        raise SafetyError(f"joint(s) beyond their limits by more than {LIMIT_TOLERANCE_RAD} rad, "
+                          f"not engaging: {joints}",
+                          hint="move it inside its limits with torque off, or check the limits in servos.toml")
+
+
+def _check_goals_taken(group: ServoGroup, ticks: NDArray[np.int64]) -> None:
+    """Read Goal Position back and refuse to engage where it differs from the ``ticks`` written
+    (shape (n,), map order) by more than ``GOAL_READBACK_TOLERANCE_TICKS``: the sync write has
+    no reply, and a servo that refused it (Data Limit Error: its own Min/Max Position Limit
+    differs from the map; Data Range Error: a tripped Bus Watchdog) keeps an old goal."""
+    reg = group.map.servos[0].table["goal_position"]  # one address for all (X-series layout)
+    r = group.bus.sync_read(reg.address, reg.size, list(group.ids))
+    if r.missing:
+        raise CommunicationError(f"no goal position read back from servo(s) {list(r.missing)}; not engaging")
+    wrong = []
+    for spec, written in zip(group.map.servos, ticks):
+        got = reg.decode(r.data[spec.id])
+        if abs(got - int(written)) > GOAL_READBACK_TOLERANCE_TICKS:
+            wrong.append(f"{spec.joint} (id {spec.id}): goal {got} ticks read back, {int(written)} written")
+    if wrong:
+        raise SafetyError("goal = present did not take, not engaging: " + "; ".join(wrong),
+                          hint="the servo refused the goal: run preflight (it writes the position limits "
+                               "of servos.toml and clears a tripped Bus Watchdog), or reboot the servo")
 
 
 def arm_watchdog(group: ServoGroup, timeout_s: float) -> int:

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from drivers.control_table import HardwareError
-from drivers.errors import PreflightError
+from drivers.errors import PreflightError, SafetyError
 from drivers.protocol import Instruction
+from drivers.safety import LIMIT_TOLERANCE_RAD
 from drivers.servo_map import ServoMap
 from drivers.startup import arm_watchdog, engage, preflight, recover
 from hil_tests.conftest import Rig, make_rig
@@ -187,3 +188,39 @@ def test_that_preflight_rewrites_a_wrong_indirect_map_and_restores_torque(rig: R
     assert all(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
     fb = rig.group.read_feedback()
     assert fb.valid.all() and np.allclose(fb.position_rad, 0.0, atol=1e-2)
+
+
+def _pose_by_hand(r: Rig, servo_id: int, q_rad: float) -> None:
+    """Torque off, the joint is moved to ``q_rad`` [rad] (servo-map frame) by hand."""
+    r.mock.plant.set_position(servo_id, q_rad)
+    r.mock.advance(r.clock.now() + 0.01)
+
+
+def test_that_engage_refuses_a_joint_posed_outside_its_limits_and_leaves_torque_off(rig: Rig) -> None:
+    preflight(rig.group)
+    emu = rig.mock.servo(1)
+    emu._set("goal_position", 2500)  # a goal left from an earlier session
+    _pose_by_hand(rig, 1, rig.servo_map.upper_rad[0] + 0.3)  # past Max Position Limit
+    with pytest.raises(SafetyError, match=r"r_sho_pitch \(id 1\) at 3\.09 rad.*-2\.79\.\.2\.79") as e:
+        engage(rig.group, watchdog_s=0.1)
+    assert "torque off" in e.value.hint and "servos.toml" in e.value.hint
+    assert not any(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
+    assert emu.get("goal_position") == 2500  # never moved towards it
+
+
+def test_that_engage_holds_a_joint_just_past_its_limit_at_the_limit(rig: Rig) -> None:
+    preflight(rig.group)
+    _pose_by_hand(rig, 1, rig.servo_map.upper_rad[0] + LIMIT_TOLERANCE_RAD / 2)
+    engage(rig.group, watchdog_s=None)
+    emu = rig.mock.servo(1)
+    assert emu.torque_on and emu.get("goal_position") == rig.servo_map.by_id(1).limit_ticks[1]
+
+
+def test_that_engage_refuses_when_a_servo_did_not_take_goal_equal_present(rig: Rig) -> None:
+    preflight(rig.group)
+    rig.bus.write(4, 48, (2000).to_bytes(4, "little"))  # its Max Position Limit no longer the map's
+    emu = rig.mock.servo(4)
+    emu._set("goal_position", 1500)  # an old goal; goal = present (2048) is refused (Data Limit)
+    with pytest.raises(SafetyError, match=r"l_sho_roll \(id 4\): goal 1500 ticks read back, 2048 written"):
+        engage(rig.group, watchdog_s=0.1)
+    assert not any(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
