@@ -28,7 +28,10 @@ from drivers.control_table import (
     INDIRECT_ADDRESS_1,
     INDIRECT_DATA_1,
     VOLTAGE_UNIT_V,
+    ControlTable,
+    control_table,
 )
+from drivers.errors import ControlTableError
 from drivers.protocol import BITS_PER_BYTE
 from drivers.servo_map import ServoMap
 
@@ -36,18 +39,43 @@ __all__ = ["FEEDBACK_LAYOUT", "FEEDBACK_SIZE", "Feedback", "ServoGroup"]
 
 _log = logging.getLogger(__name__)
 
+# Group instructions address every servo at once, so the registers used here are looked up in
+# one table: every supported model shares the X-series layout (drivers/control_table.py), which
+# ServoGroup checks for the models of its map (_check_layout).
+_LAYOUT: ControlTable = control_table("XM430-W350")
+_FEEDBACK_REGISTERS = ("present_position", "present_velocity", "present_current", "hardware_error_status",
+                       "present_temperature", "present_input_voltage")
 # (register address, size) packed by indirect addressing, in order
-FEEDBACK_LAYOUT: tuple[tuple[int, int], ...] = ((132, 4), (128, 4), (126, 2), (70, 1), (146, 1), (144, 2))
+FEEDBACK_LAYOUT: tuple[tuple[int, int], ...] = tuple(
+    (_LAYOUT[name].address, _LAYOUT[name].size) for name in _FEEDBACK_REGISTERS)
 FEEDBACK_SIZE = sum(n for _, n in FEEDBACK_LAYOUT)  # 14 bytes
 _FEEDBACK_STRUCT = struct.Struct("<iihBBH")
 # one servo's block of a Fast Sync Read reply: error, id, the feedback layout, running CRC
 _FAST_BLOCK = np.dtype([("error", "u1"), ("id", "u1"), ("pos", "<i4"), ("vel", "<i4"), ("cur", "<i2"),
                         ("hw", "u1"), ("temp", "u1"), ("volt", "<u2"), ("crc", "<u2")])
 _GOAL_BLOCK = np.dtype([("id", "u1"), ("ticks", "<i4")])  # one servo's sync-write goal entry
-GOAL_POSITION = 116
-TORQUE_ENABLE = 64
-GOAL_PWM = 100
-BUS_WATCHDOG = 98
+GOAL_POSITION = _LAYOUT["goal_position"].address
+TORQUE_ENABLE = _LAYOUT["torque_enable"].address
+GOAL_PWM = _LAYOUT["goal_pwm"].address
+BUS_WATCHDOG = _LAYOUT["bus_watchdog"].address
+# without the indirect block: one contiguous read from Present Current through address 147 (one
+# byte past Present Temperature, read since the start, not decoded), then Hardware Error Status
+_SPAN_ADDRESS = _LAYOUT["present_current"].address
+_SPAN_SIZE = _LAYOUT["present_temperature"].address + _LAYOUT["present_temperature"].size + 1 - _SPAN_ADDRESS
+_SPAN_REGISTERS = tuple(_LAYOUT[name] for name in ("present_position", "present_velocity", "present_current",
+                                                   "present_temperature", "present_input_voltage"))
+_HARDWARE_ERROR = _LAYOUT["hardware_error_status"]
+_USED_REGISTERS = tuple(_LAYOUT[name] for name in (*_FEEDBACK_REGISTERS, "goal_position", "torque_enable",
+                                                   "goal_pwm", "bus_watchdog"))
+
+
+def _check_layout(table: ControlTable) -> None:
+    """Raise unless ``table`` has every register used here at the shared address and size."""
+    for reg in _USED_REGISTERS:
+        other = table.at(reg.address)
+        if other is None or other.size != reg.size:
+            raise ControlTableError(f"{table.model} has no {reg.size}-byte register at {reg.address} ({reg.name})",
+                                    hint="a servo group needs the X-series layout on every servo")
 
 
 @dataclass(frozen=True)
@@ -90,13 +118,16 @@ class ServoGroup:
         servo_map: which IDs, joints, directions and limits.
         fast_read: use Fast Sync Read (set by :func:`drivers.startup.preflight` from firmware).
         use_indirect: read the packed indirect block (set up by preflight); otherwise read
-            the contiguous span 126..147 plus hardware error status separately.
+            the contiguous span 126..147 (Present Current to Present Temperature) plus hardware
+            error status separately.
         quarantine_after: consecutive missing reads before a servo is quarantined.
         reping_every: cycles between re-pings of quarantined servos.
     """
 
     def __init__(self, bus: DynamixelBus, servo_map: ServoMap, *, fast_read: bool = False,
                  use_indirect: bool = True, quarantine_after: int = 2, reping_every: int = 10) -> None:
+        for table in {s.table.model: s.table for s in servo_map.servos}.values():
+            _check_layout(table)
         self.bus = bus
         self.map = servo_map
         self.ids = servo_map.ids
@@ -116,7 +147,7 @@ class ServoGroup:
         self._ids_tuple = tuple(self.ids)
         # goal sync write for all servos: the parameter block is a numpy record array whose
         # header (address, length) and IDs are filled once; only the ticks change per cycle
-        self._goal_header = struct.pack("<HH", GOAL_POSITION, 4)
+        self._goal_header = struct.pack("<HH", GOAL_POSITION, _LAYOUT["goal_position"].size)
         self._goal_block = np.zeros(n, dtype=_GOAL_BLOCK)
         self._goal_block["id"] = self._ids_array
 
@@ -132,7 +163,7 @@ class ServoGroup:
         elif self.use_indirect:
             reply_b = n * (11 + FEEDBACK_SIZE)
         else:  # 22-byte span and hardware error status, two plain sync reads
-            reply_b = n * (11 + 22) + (14 + n) + n * (11 + 1)
+            reply_b = n * (11 + _SPAN_SIZE) + (14 + n) + n * (11 + _HARDWARE_ERROR.size)
         delays = n * self.map.bus.return_delay_time_us * 1e-6
         return (write_b + request_b + reply_b) * BITS_PER_BYTE / self.bus.baud_rate + delays
 
@@ -165,7 +196,7 @@ class ServoGroup:
         pack = self._goal_reg.pack
         data = {sid: pack(int(t)) for sid, t in zip(self.ids, ticks)
                 if sid not in self.quarantined and sid not in skip}
-        self.bus.sync_write(GOAL_POSITION, 4, data, defer=defer)
+        self.bus.sync_write(GOAL_POSITION, _LAYOUT["goal_position"].size, data, defer=defer)
         return ticks
 
     def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None) -> None:
@@ -177,7 +208,7 @@ class ServoGroup:
 
     def torque(self, on: bool, ids: Sequence[int] | None = None) -> None:
         """Torque Enable on all (``ids`` None) or on ``ids`` only (empty: none) by sync write."""
-        self.write_all(TORQUE_ENABLE, 1, int(on), ids)
+        self.write_all(TORQUE_ENABLE, _LAYOUT["torque_enable"].size, int(on), ids)
 
     # ---- reads ----------------------------------------------------------------------------
     def _raw_read(self, ids: list[int]) -> GroupRead:
@@ -192,16 +223,16 @@ class ServoGroup:
                     r2 = self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, rest)
                     return GroupRead({**r.data, **r2.data}, {**r.errors, **r2.errors}, r2.missing)
             return self.bus.sync_read(INDIRECT_DATA_1, FEEDBACK_SIZE, ids)
-        # no indirect block: contiguous 126..147 (22 bytes) then hardware errors
-        r = self.bus.sync_read(126, 22, ids, fast=self.fast_read)
+        # no indirect block: the contiguous span (126..147) then hardware errors
+        r = self.bus.sync_read(_SPAN_ADDRESS, _SPAN_SIZE, ids, fast=self.fast_read)
         if self.fast_read and not r.complete:
-            r = self.bus.sync_read(126, 22, ids)
-        hw = self.bus.sync_read(70, 1, [i for i in ids if i in r.data])
+            r = self.bus.sync_read(_SPAN_ADDRESS, _SPAN_SIZE, ids)
+        hw = self.bus.sync_read(_HARDWARE_ERROR.address, _HARDWARE_ERROR.size, [i for i in ids if i in r.data])
         data = {}
         for sid, d in r.data.items():
-            cur, vel, pos = struct.unpack_from("<hii", d, 0)
-            volt, temp = struct.unpack_from("<HB", d, 18)
-            err = hw.data.get(sid, b"\x00")[0]
+            pos, vel, cur, temp, volt = (reg.decode(d[reg.address - _SPAN_ADDRESS:][:reg.size])
+                                         for reg in _SPAN_REGISTERS)
+            err = _HARDWARE_ERROR.decode(hw.data.get(sid, bytes(_HARDWARE_ERROR.size)))
             data[sid] = _FEEDBACK_STRUCT.pack(pos, vel, cur, err, temp, volt)
         return GroupRead(data, r.errors, r.missing, r.fast)
 

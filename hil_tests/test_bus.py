@@ -203,3 +203,40 @@ def test_that_an_empty_id_list_writes_to_no_servo(rig: Rig) -> None:
     assert [s.id for s in rig.servo_map.servos if not rig.mock.servo(s.id).torque_on] == [3]
     rig.group.torque(False)  # None (the default) still means every servo
     assert not any(rig.mock.servo(s.id).torque_on for s in rig.servo_map.servos)
+
+
+def test_that_feedback_without_the_indirect_block_matches_the_indirect_read(rig: Rig) -> None:
+    import struct
+
+    from drivers.protocol import Instruction
+
+    preflight(rig.group)
+    rig.mock.plant.set_position(5, 0.4)
+    rig.mock.faults.hardware_error(9, HardwareError.OVERHEATING)
+    rig.clock.sleep(0.01)
+    rig.mock.advance()
+    packed = rig.group.read_feedback()
+    rig.group.use_indirect = False
+    start = len(rig.mock.log)
+    plain = rig.group.read_feedback()
+    reads = [(p.instruction, struct.unpack_from("<HH", p.params)) for p in rig.mock.log[start:]]
+    assert reads == [(Instruction.FAST_SYNC_READ, (126, 22)), (Instruction.SYNC_READ, (70, 1))]
+    for name in ("position_rad", "velocity_rad_s", "effort_raw", "hardware_error", "temperature_c", "voltage_v"):
+        assert np.array_equal(getattr(plain, name), getattr(packed, name)), name
+    assert plain.valid.all() and plain.hardware_error[rig.group.ids.index(9)] == HardwareError.OVERHEATING
+
+
+def test_that_a_servo_group_refuses_a_model_without_the_shared_register_layout(rig: Rig, monkeypatch) -> None:
+    from types import MappingProxyType
+
+    import drivers.servo_map as sm
+    from drivers.control_table import ControlTable, control_table
+    from drivers.errors import ControlTableError
+    from drivers.group import ServoGroup
+
+    xm = control_table("XM430-W350")
+    odd = ControlTable("ODD-1", 9999, MappingProxyType({n: r for n, r in xm.registers.items() if n != "goal_pwm"}),
+                       xm.defaults, xm.current_unit_a, xm.operating_modes)
+    monkeypatch.setattr(sm.ServoSpec, "table", property(lambda self: odd))
+    with pytest.raises(ControlTableError, match="ODD-1 has no 2-byte register at 100 \\(goal_pwm\\)"):
+        ServoGroup(rig.bus, rig.servo_map)
