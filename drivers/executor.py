@@ -29,7 +29,6 @@ from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_schedulin
 from drivers.errors import CommunicationError, SafetyError
 from drivers.group import GOAL_PWM, Feedback, ServoGroup
 from drivers.safety import (
-    LIMIT_TOLERANCE_RAD,
     Fault,
     FaultKind,
     SafetyLimits,
@@ -37,6 +36,7 @@ from drivers.safety import (
     approach_path,
     check_start,
     evaluate_feedback,
+    require_inside_limits,
     safe_target,
 )
 from drivers.startup import RecoveryReport, arm_watchdog, disarm_watchdog, recover
@@ -253,15 +253,8 @@ class Executor:
             raise SafetyError("trajectory times must increase strictly")
         if not np.all(np.isfinite(q)):
             raise SafetyError("trajectory contains NaN or infinite angles")
-        present = np.asarray(q_present, dtype=float)
-        outside = np.maximum(present - self.limits.upper_rad, self.limits.lower_rad - present)
-        j = int(np.argmax(outside))
-        if outside[j] > LIMIT_TOLERANCE_RAD:  # the first command, clamped, would jump to the limit
-            raise SafetyError(
-                f"{self.group.map.servos[j].joint} is {outside[j]:.3f} rad outside its limits "
-                f"({self.limits.lower_rad[j]:.3f}..{self.limits.upper_rad[j]:.3f} rad) at present",
-                hint="with torque off (robot-rise servos torque off), move it inside its limits by hand, "
-                     "or correct its limits in the servo map")
+        require_inside_limits(q_present, self.limits.lower_rad, self.limits.upper_rad,
+                              [f"{sp.joint} (id {sp.id})" for sp in self.group.map.servos], "not streaming")
         idx = self.group.map.index_of(joint_names)
         qm = q[:, idx]
         tm = (t - t[0]) / self.config.speed

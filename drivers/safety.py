@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +40,7 @@ __all__ = [
     "approach_path",
     "evaluate_feedback",
     "limp_pwm_ramp",
+    "require_inside_limits",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -168,6 +170,26 @@ def safe_target(q_desired_rad: FloatArray, q_previous_rad: FloatArray, limits: S
 
 
 LIMIT_TOLERANCE_RAD = 0.02  # [rad] excursion beyond a joint limit still accepted (and clamped)
+
+
+def require_inside_limits(q_rad: FloatArray, lower_rad: FloatArray, upper_rad: FloatArray,
+                          labels: Sequence[str], refusal: str, *,
+                          tolerance_rad: float = LIMIT_TOLERANCE_RAD) -> None:
+    """Refuse (``SafetyError``: ``refusal``, then every such joint) when a present position
+    ``q_rad`` (shape (n,)) lies beyond its limit by more than ``tolerance_rad``.
+
+    What the driver commands is clamped into the limits, so from a joint posed (or pushed) far
+    outside them the first command would be a jump to the limit at full speed.
+    """
+    q = np.asarray(q_rad, dtype=float)
+    excess = np.maximum(q - upper_rad, lower_rad - q)
+    outside = np.flatnonzero(excess > tolerance_rad)
+    if outside.size:
+        joints = "; ".join(f"{labels[k]} at {q[k]:.2f} rad is {excess[k]:.3f} rad outside its limits "
+                           f"{lower_rad[k]:.2f}..{upper_rad[k]:.2f} rad" for k in outside)
+        raise SafetyError(f"{refusal}: {joints}",
+                          hint="with torque off (robot-rise servos torque off), move it inside its limits by hand, "
+                               "or correct its limits in servos.toml")
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from drivers.bus import PingResult
 from drivers.control_table import WATCHDOG_UNIT_S, HardwareError, model_for_number
 from drivers.errors import CommunicationError, PreflightError, SafetyError, ServoStatusError
 from drivers.group import BUS_WATCHDOG, GOAL_POSITION, TORQUE_ENABLE, ServoGroup
-from drivers.safety import LIMIT_TOLERANCE_RAD
+from drivers.safety import require_inside_limits
 from drivers.servo_map import ServoSpec
 
 __all__ = [
@@ -216,27 +216,14 @@ def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:
     if not fb.valid.all():
         missing = [sid for sid, ok in zip(group.ids, fb.valid) if not ok]
         raise CommunicationError(f"no present position from servo(s) {missing}; not engaging")
-    _check_inside_limits(group, fb.position_rad)
+    require_inside_limits(fb.position_rad, group.map.lower_rad, group.map.upper_rad,
+                          [f"{sp.joint} (id {sp.id})" for sp in group.map.servos], "not engaging")
     smap = group.map
     ticks = group.write_goals(np.clip(fb.position_rad, smap.lower_rad, smap.upper_rad))
     _check_goals_taken(group, ticks)
     group.torque(True)
     if watchdog_s is not None:
         arm_watchdog(group, watchdog_s)
-
-
-def _check_inside_limits(group: ServoGroup, q_rad: NDArray[np.float64]) -> None:
-    """Refuse to engage if a present position ``q_rad`` [rad], shape (n,), lies beyond its
-    servo-map limit by more than ``LIMIT_TOLERANCE_RAD``."""
-    smap = group.map
-    lower, upper = smap.lower_rad, smap.upper_rad
-    outside = np.flatnonzero(np.maximum(q_rad - upper, lower - q_rad) > LIMIT_TOLERANCE_RAD)
-    if outside.size:
-        joints = "; ".join(f"{smap.servos[k].joint} (id {smap.servos[k].id}) at {q_rad[k]:.2f} rad, "
-                           f"limits {lower[k]:.2f}..{upper[k]:.2f}" for k in outside)
-        raise SafetyError(f"joint(s) beyond their limits by more than {LIMIT_TOLERANCE_RAD} rad, "
-                          f"not engaging: {joints}",
-                          hint="move it inside its limits with torque off, or check the limits in servos.toml")
 
 
 def _check_goals_taken(group: ServoGroup, ticks: NDArray[np.int64]) -> None:

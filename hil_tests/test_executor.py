@@ -342,7 +342,7 @@ def test_that_a_joint_outside_its_limits_is_refused_before_anything_moves(servo_
     names, t, q = _trajectory(servo_map)
     present = np.zeros(len(servo_map))
     present[3] = servo_map.upper_rad[3] + 0.3  # posed by hand past its limit
-    with pytest.raises(SafetyError, match=f"{servo_map.servos[3].joint} is 0.300 rad outside its limits"):
+    with pytest.raises(SafetyError, match=rf"{servo_map.servos[3].joint} \(id {servo_map.servos[3].id}\) at .* is 0.300 rad outside its limits"):
         ex.prepare(names, t, q, present)
     present[3] = servo_map.upper_rad[3] + 0.01  # within the tolerance: accepted, then clamped
     ex.prepare(names, t, q, present)
