@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.control_table import CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.control_table import BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.errors import ControlTableError, ServoMapError
 
 __all__ = [
@@ -29,7 +29,7 @@ __all__ = [
 
 SERVO_MAP_FORMAT = "robot-rise/servos@1"
 _DEFAULT_LIMIT_RAD = 3.14  # [rad] default joint limit: just inside one turn of position mode
-_SUPPORTED_BAUDS = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+_SUPPORTED_BAUDS = tuple(BAUD_RATE_BY_INDEX.values())
 
 
 @dataclass(frozen=True)
@@ -56,8 +56,7 @@ class BusSpec:
     @property
     def baud_index(self) -> int:
         """Value of the Baud Rate register for ``baud_rate``."""
-        return {9600: 0, 57600: 1, 115200: 2, 1_000_000: 3, 2_000_000: 4, 3_000_000: 5,
-                4_000_000: 6, 4_500_000: 7}[self.baud_rate]
+        return next(i for i, rate in BAUD_RATE_BY_INDEX.items() if rate == self.baud_rate)
 
     @property
     def return_delay_units(self) -> int:

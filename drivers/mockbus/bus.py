@@ -17,7 +17,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from drivers.clock import Clock, MonotonicClock
-from drivers.control_table import CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.control_table import BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.mockbus.faults import FaultInjector
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion
 from drivers.mockbus.servo import EmulatedServo
@@ -36,8 +36,7 @@ __all__ = ["MockBus", "Reply", "BAUD_BY_INDEX"]
 
 _log = logging.getLogger(__name__)
 
-BAUD_BY_INDEX = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000,
-                 6: 4_000_000, 7: 4_500_000}
+BAUD_BY_INDEX = BAUD_RATE_BY_INDEX  # re-exported for emulator users
 _MAX_STEP_S = 0.01  # [s] largest plant integration step
 _PLANT_PERIOD_S = 0.002  # [s] smallest plant step (500 Hz, the MuJoCo twin's physics rate)
 
