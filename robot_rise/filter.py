@@ -101,7 +101,6 @@ LEAN_ITERATIONS = 4  # filter iterations that may adapt the lean (on top of max_
 LEAN_MIN_AXIS = 0.7  # a shoulder pitch joint's axis is at least this much along the body's y axis
 
 # libm's atan2 element-wise: numpy's own arctan2 differs from it in the last bit for some inputs
-_atan2 = np.vectorize(math.atan2, otypes=[float])
 
 
 @dataclass(frozen=True)
@@ -456,12 +455,11 @@ def torso_pitch_rad(root_quat_wxyz: np.ndarray) -> np.ndarray:
     ``atan2(-x_z, z_z)`` of the torso's x and z axes in the world: 0 upright, +pi/2 lying face
     down, -pi/2 lying on the back, whatever the heading.
     """
-    quats = np.ascontiguousarray(np.atleast_2d(np.asarray(root_quat_wxyz, dtype=float)))  # contiguous rows: norms summed as np.linalg.norm sums them
-    w, x, y, z = (quats / np.sqrt(quats[:, None, :] @ quats[:, :, None])[:, 0]).T
-    # rotation matrix entries (2, 0) and (2, 2), summed in the order of MuJoCo's mju_quat2Mat
-    x_z = 2 * (x * z - w * y)
-    z_z = (w * w - y * y) - (x * x - z * z)
-    return _atan2(-x_z, z_z)
+    quats = np.atleast_2d(np.asarray(root_quat_wxyz, dtype=float))
+    w, x, y, z = (quats / np.linalg.norm(quats, axis=1, keepdims=True)).T
+    x_z = 2 * (x * z - w * y)  # rotation matrix entries (2, 0) and (2, 2)
+    z_z = w * w - x * x - y * y + z * z
+    return np.arctan2(-x_z, z_z)
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ from robot_rise.model import Robot
 from robot_rise.placement import align_to_start
 from robot_rise.fileio import write_text_atomic
 from robot_rise.paths import configs_dir
-from robot_rise.planning.problem import select_goal
+from robot_rise.rise import select_goal
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict, quat_multiply
 from robot_rise.validity import ValidityChecker
 

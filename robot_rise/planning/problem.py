@@ -122,14 +122,3 @@ class Planner(Protocol):
     """Any planner: a problem in, a result out."""
 
     def __call__(self, problem: PlanningProblem) -> PlanResult: ...
-
-
-def __getattr__(name: str) -> object:
-    """``GoalSelection`` and ``select_goal`` moved to ``robot_rise.rise`` (the planner does not
-    depend on ``rise``); robot_rise/planning/bench_problems.py still imports ``select_goal`` from
-    here. Remove this once it imports it from ``robot_rise.rise``."""
-    if name in ("GoalSelection", "select_goal"):
-        import robot_rise.rise
-
-        return getattr(robot_rise.rise, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
