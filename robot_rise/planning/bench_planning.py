@@ -56,6 +56,7 @@ from robot_rise.validity import ValidityChecker
 __all__ = ["OmplPlanner", "BenchRow", "run_one", "run_benchmark", "summarize", "main"]
 
 log = logging.getLogger(__name__)
+BENCH_PLANNING_FORMAT = "robot-rise/bench-planning@1"  # results file of this benchmark
 
 
 @dataclass(frozen=True)
@@ -198,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     done: list[BenchRow] = []
-    meta = {"args": vars(args), "library_digest_now": library_digest(robot)}
+    meta = {"format": BENCH_PLANNING_FORMAT, "args": vars(args), "library_digest_now": library_digest(robot)}
 
     def save(row: BenchRow) -> None:
         done.append(row)
