@@ -330,7 +330,8 @@ def test_that_the_second_stage_smooths_the_motion_and_keeps_it_legal(setup, prob
     assert np.all(out[:, checker.index.qpos_joints] >= robot.joint_lower - 1e-9)
     assert np.all(out[:, checker.index.qpos_joints] <= robot.joint_upper + 1e-9)
     # the corners of the key-posture polyline are rounded: the trajectory Laplacian falls by half or more
-    before = energy_module.trajectory_laplacian_energy(checker, energy_module.resample_path(checker, keys, 0.05))
+    spacing = energy_module.SecondStageParams().frame_spacing_rad
+    before = energy_module.trajectory_laplacian_energy(checker, energy_module.resample_path(checker, keys, spacing))
     after = energy_module.trajectory_laplacian_energy(checker, out)
     assert stats["laplacian_before"] == pytest.approx(before)
     assert after < 0.5 * before
@@ -383,6 +384,83 @@ def test_that_the_second_stage_keeps_a_frame_whose_change_the_checker_refuses(se
     out = energy_module.second_stage(refusing, dense, params=params, stats=stats, resolution_m=1.0)
     assert np.allclose(out, dense)  # every change was refused: the motion is unchanged, and legal
     assert stats["held"] == len(dense) - 2 and stats["iterations"] == 1  # nothing moved: converged
+
+
+def _unstraightened_keys(checker, p):
+    out = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0), params=EnergyParams(second_stage=None, straighten_limbs=False))
+    assert out.solved, out.reason
+    return out.path.qpos(checker)
+
+
+def _limb_excursion(checker, path, limb):
+    """Largest deviation [rad] of a limb's joints from the straight motion start -> end along the rows."""
+    robot = checker.robot
+    cols = [checker.index.qpos_joints[robot.joint_index(j)] for j in robot.limbs[limb]]
+    q = path[:, cols]
+    u = np.linspace(0.0, 1.0, len(q))[:, None]  # any monotone fraction: the ends of a still limb agree
+    return float(np.max(np.abs(q - q[0]))) if np.allclose(q[0], q[-1]) else float(np.max(np.abs(q - (q[0] + u * (q[-1] - q[0])))))
+
+
+def test_that_straightening_stops_the_legs_moving_for_the_crossed_arms_and_keeps_the_path_legal(setup, problems):
+    robot, checker, _ = setup
+    keys = _unstraightened_keys(checker, problems["crossed_arms"])
+    # the energy spreads the legs for an arm problem (section 5.1's "unnecessary expansion")
+    assert _limb_excursion(checker, keys, "left_leg") > 0.05 and _limb_excursion(checker, keys, "right_leg") > 0.05
+    stats: dict = {}
+    out = energy_module.straighten_limbs(checker, keys, stats=stats)
+    assert out.shape == keys.shape
+    assert np.array_equal(out[0], keys[0]) and np.array_equal(out[-1], keys[-1])
+    assert all(checker.is_valid_qpos(q) for q in out)
+    assert all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(out[:-1], out[1:]))
+    assert {"root", "left_leg", "right_leg"} <= set(stats["straightened"])
+    assert _limb_excursion(checker, out, "left_leg") < 1e-9 and _limb_excursion(checker, out, "right_leg") < 1e-9
+    # the arms cannot both move straight: that is the penetrating straight motion of the problem
+    assert not {"left_arm", "right_arm"} <= set(stats["straightened"])
+
+
+def test_that_straightening_keeps_the_path_when_the_checker_refuses_every_new_posture(setup, problems):
+    robot, checker, _ = setup
+    keys = _unstraightened_keys(checker, problems["crossed_arms"])
+    stats: dict = {}
+    out = energy_module.straighten_limbs(_RefuseNewPostures(checker, keys), keys, stats=stats)
+    assert np.array_equal(out, keys) and stats["straightened"] == []
+
+
+def test_that_the_default_planner_straightens_and_writes_its_motion_densely(setup, problems):
+    robot, checker, _ = setup
+    result = plan_energy(PlanningProblem(problems["crossed_arms"].start, problems["crossed_arms"].goal, checker, budget_s=30.0))
+    assert result.solved
+    leg = result.stats["legs"][-1]
+    assert "left_leg" in leg["straightened"] and leg["second_stage"]["output"] in ("polyline", "bspline")
+    q = result.path.qpos(checker)
+    assert _limb_excursion(checker, q, "left_leg") < 1e-9
+    scale = energy_module._tangent_scale(checker, EnergyParams())
+    steps = [float(np.linalg.norm(scale * tangent_difference(checker.model, a, b))) for a, b in zip(q[:-1], q[1:])]
+    assert max(steps) <= energy_module.OUTPUT_SPACING_RAD * 1.5  # the B-spline's samples: near the spacing
+
+
+def test_that_the_dense_output_is_legal_dense_and_no_rougher_than_the_polyline(setup, problems):
+    robot, checker, _ = setup
+    frames = energy_module.second_stage(checker, _key_path(checker, problems["crossed_arms"]))
+    stats: dict = {}
+    out = energy_module.dense_output(checker, frames, stats=stats)
+    assert np.array_equal(out[0], frames[0]) and np.array_equal(out[-1], frames[-1])
+    assert len(out) >= 4 * len(frames) and stats["output_frames"] == len(out)
+    assert all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(out[:-1], out[1:]))
+    poly = energy_module.resample_path(checker, frames, energy_module.OUTPUT_SPACING_RAD)
+    assert energy_module._timed_roughness(checker, out) <= energy_module._timed_roughness(checker, poly)
+    # on crossed arms the B-spline is legal and times smoother than the frames' polyline (which
+    # bends at every frame): measured 2026-12-01, J x D^5 lower
+    assert stats["output"] == "bspline"
+
+
+def test_that_the_dense_output_falls_back_to_the_polyline_when_the_curve_is_refused(setup, problems):
+    robot, checker, _ = setup
+    frames = energy_module.second_stage(checker, _key_path(checker, problems["crossed_arms"]))
+    poly = energy_module.resample_path(checker, frames, energy_module.OUTPUT_SPACING_RAD)
+    stats: dict = {}
+    out = energy_module.dense_output(_RefuseNewPostures(checker, poly), frames, stats=stats, resolution_m=1.0)
+    assert stats["output"] == "polyline" and np.allclose(out, poly)
 
 
 def _min_jerk(duration_s, amplitude, period_s=0.002):

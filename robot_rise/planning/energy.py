@@ -14,10 +14,14 @@ Pieces, each from the paper section named beside it:
 - ``safe_zone_keyframes``: the output of each leg reduced to its key postures, consecutive ones in
   one safe subspace (section 5.2: eq. 8 below the threshold and a legal straight motion), instead
   of every alpha step (Algorithm 1's direct and projected steps zig-zag at the step scale).
+- ``straighten_limbs``: the root and each linkage of Fig. 8 that the key postures move and bring
+  back without need (section 5.1's "unnecessary expansion") put on its straight motion where
+  that is legal (ours).
 - ``second_stage``: the section 6.2 projection of the motion (eq. 14, 19-20 with M = I): frames
   kept close to the first-stage motion, a Laplacian smoothness term on the trajectory, the
-  linear-momentum term of eq. (18), joint limits and positional constraints as hard constraints,
-  and the validity checker as the judge of every frame and segment (no new penetration).
+  linear-momentum term of eq. (18) (weight 0 by default, as in the paper's eq. 20), joint limits
+  and positional constraints as hard constraints, and the validity checker as the judge of every frame and segment (no new penetration);
+  ``dense_output`` then writes the motion out densely for the shared timing.
 
 Adaptations for a 0.51 m robot (marked "ours" in robot_rise/constants.py):
 
@@ -80,7 +84,7 @@ from robot_rise.planning.capsules import (
     segment_closest_points,
     world_capsules,
 )
-from robot_rise.planning.gli import GliMatrix, gli_difference
+from robot_rise.planning.gli import LINKAGE_ORDER, GliMatrix, gli_difference
 from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
 from robot_rise.posture import Posture, posture_from_qpos
 from robot_rise.validity import ValidityChecker
@@ -98,6 +102,7 @@ __all__ = [
     "FALLOFF_RETRY_SCHEDULE",
     "GROUND_CONTACT_ZONE_M",
     "safe_zone_keyframes",
+    "straighten_limbs",
     "tangent_difference",
     "tangent_step",
     "segment_is_valid",
@@ -105,6 +110,7 @@ __all__ = [
     "second_stage",
     "resample_path",
     "trajectory_laplacian_energy",
+    "dense_output",
 ]
 
 log = logging.getLogger(__name__)
@@ -122,9 +128,18 @@ GROUND_CONTACT_ZONE_M = 0.01
 # Laplacian and angular momentum and "the maximum iteration is 30" (section 7.2); our terms are
 # on the trajectory in the scaled tangent space (see ``second_stage``), so the weights are ours.
 SECOND_STAGE_ITERATIONS = 30  # paper 004 section 7.2: "the maximum iteration is 30"
-SECOND_STAGE_FRAME_SPACING_RAD = 0.05  # ours: frames of the projected motion at most this far apart (scaled tangent norm)
+# Ours: frames of the projected motion at most this far apart (scaled tangent norm). 0.05 before
+# issue 7's second round; 0.025 measured smoother (crossed-limb J x D^5 median ratio 0.55).
+SECOND_STAGE_FRAME_SPACING_RAD = 0.025
 SECOND_STAGE_W_LAP = 10.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
-SECOND_STAGE_W_LM = 1.0  # ours: weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M
+# Weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M. Off, as in
+# the paper's own solver ("for the sake of simplicity, we omit the linear momentum", eq. 20): at 1.0
+# it changed no crossed-limb result by more than 1 % and cost a quarter of the planning time.
+SECOND_STAGE_W_LM = 0.0
+# Ours: the second stage's motion is handed on with frames at most this far apart (scaled tangent
+# norm; 1/5 of the frame spacing): every step is then under the timing's 0.01 rad densification
+# step, so the timing sees the curve, not the frames' polyline (``dense_output``).
+OUTPUT_SPACING_RAD = 0.005
 SECOND_STAGE_HALVINGS = 3  # ours: a frame whose step makes it or a neighbouring segment illegal halves it this often, then keeps its posture
 
 
@@ -179,6 +194,9 @@ class EnergyParams:
             the touched ground as positional constraints (Algorithm 2; ours: automatic contacts).
         keyframes: ``plan_energy`` returns the key postures of each leg (``safe_zone_keyframes``,
             section 5.2) instead of every alpha step.
+        straighten_limbs: undo the expansion of the root and of each linkage that a leg's key
+            postures do not need (``straighten_limbs``; ours, section 5.1's "unnecessary
+            expansion"), before the second stage.
         second_stage: project each leg's motion by ``second_stage`` (section 6.2); on by default
             (None: off). On by measurement (BENCHMARKS.md, issue 7): through the shared smoother
             it is smoother than the key postures alone on 58/60 lying problems and 15/15
@@ -203,6 +221,7 @@ class EnergyParams:
     move_root: bool = True
     ground_contacts: bool = True
     keyframes: bool = True
+    straighten_limbs: bool = True
     second_stage: SecondStageParams | None = field(default_factory=SecondStageParams)
 
     def __post_init__(self) -> None:
@@ -908,6 +927,73 @@ def safe_zone_keyframes(
     return path[keep]
 
 
+def _limb_dofs(checker: ValidityChecker) -> list[tuple[str, np.ndarray]]:
+    """(name, qvel indices) of the root and of the five linkages of paper 004 Fig. 8 (robot.toml [limbs])."""
+    robot = checker.robot
+    dof = np.asarray(checker.index.dof_joints)
+    out = [("root", np.asarray(checker.index.qvel_root))]
+    for name in LINKAGE_ORDER:
+        out.append((name, np.array([dof[robot.joint_index(j)] for j in robot.limbs.get(name, ())], dtype=int)))
+    return [(n, d) for n, d in out if d.size]
+
+
+def straighten_limbs(
+    checker: ValidityChecker,
+    path: np.ndarray,
+    *,
+    resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
+    levers: tuple[float, np.ndarray] | None = None,
+    stats: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """Undo the expansion of the root and of each linkage that the problem does not need.
+
+    Paper 004 section 5.1: the energy "expands all parts almost equally", so "some unnecessary
+    expansion still happens especially at the peripheral joints" (its remedy is the fall-off d).
+    On a lying robot this moves the legs for an arm problem (crossed arms: hip roll +-0.26 rad and
+    back) and the root, and every moving joint adds to the motion's jerk. Here, in turn for the
+    root and the five linkages of Fig. 8 (torso, left arm, right arm, left leg, right leg), the
+    part's coordinates in every interior key posture are replaced by the straight motion from its
+    start to its end value (at the posture's arc-length fraction along the path, in the scaled
+    tangent chart of the first posture), and the change is kept if every posture and every
+    segment stays legal at ``resolution_m``. Deterministic; the ends do not change; the result is
+    legal wherever the input is.
+
+    Args:
+        path: legal key postures as qpos rows, shape (K, nq).
+        stats: filled with ``straightened``: the names of the parts made straight.
+
+    Returns:
+        qpos rows, shape (K, nq).
+    """
+    m = checker.model
+    lev = levers if levers is not None else _levers(checker)
+    scale = _tangent_scale(checker, EnergyParams())
+    q = np.array(path, dtype=float)
+    done: list[str] = []
+    if len(q) > 2:
+        qj = checker.index.qpos_joints
+        lo, hi = checker.robot.joint_lower, checker.robot.joint_upper
+        for name, dofs in _limb_dofs(checker):
+            y = np.array([tangent_difference(m, q[0], x) for x in q])
+            seg = np.linalg.norm(np.diff(scale * y, axis=0), axis=1)
+            u = np.concatenate([[0.0], np.cumsum(seg)]) / max(float(seg.sum()), 1e-12)
+            cand_y = y.copy()
+            cand_y[1:-1, dofs] = u[1:-1, None] * y[-1, dofs][None, :]
+            if np.max(np.abs(cand_y - y)) < 1e-9:
+                continue
+            cand = np.array([tangent_step(m, q[0], v) for v in cand_y])
+            cand[:, qj] = np.clip(cand[:, qj], lo, hi)
+            cand[0], cand[-1] = q[0], q[-1]
+            if all(checker.is_valid_qpos(x) for x in cand[1:-1]) and all(
+                segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=lev) for a, b in zip(cand[:-1], cand[1:])
+            ):
+                q = cand
+                done.append(name)
+    if stats is not None:
+        stats["straightened"] = done
+    return q
+
+
 
 # --- second stage (section 6.2) -------------------------------------------------------------------
 
@@ -1113,6 +1199,81 @@ def second_stage(
     st["laplacian_after"] = trajectory_laplacian_energy(checker, q, scale)
     return q
 
+def _bspline_chart(checker: ValidityChecker, path: np.ndarray, per_piece: int) -> np.ndarray:
+    """Samples of the uniform cubic B-spline of the rows (ends tripled: it starts and ends on them),
+    in the tangent chart of the first row; ``per_piece`` samples per piece; qpos rows (K', nq)."""
+    m = checker.model
+    y = np.array([tangent_difference(m, path[0], x) for x in path])
+    c = np.concatenate([y[:1], y[:1], y, y[-1:], y[-1:]])
+    pieces = len(c) - 3
+    u = np.arange(per_piece) / per_piece
+    b = np.stack([(1 - u) ** 3, 3 * u**3 - 6 * u**2 + 4, -3 * u**3 + 3 * u**2 + 3 * u + 1, u**3], axis=1) / 6.0
+    ys = [b @ c[j : j + 4] for j in range(pieces)]  # piece 0 starts on the first row, the last ends on the last
+    out = np.array([path[0]] + [tangent_step(m, path[0], v) for v in np.concatenate(ys)[1:]] + [path[-1]])
+    qj = checker.index.qpos_joints
+    out[:, qj] = np.clip(out[:, qj], checker.robot.joint_lower, checker.robot.joint_upper)
+    return out
+
+
+def _timed_roughness(checker: ValidityChecker, path: np.ndarray) -> float:
+    """J x D^5 [rad^2] of the shared servo-limited timing of qpos rows: the jerk at a common duration."""
+    from robot_rise.planning.timing import integrated_squared_jerk, time_parameterize
+
+    robot = checker.robot
+    seq = PostureSequence.from_postures([posture_from_qpos(robot, checker.index, q) for q in path], robot.joint_names)
+    timed = time_parameterize(seq, robot)
+    return integrated_squared_jerk(timed.t, timed.joints) * timed.duration_s**5
+
+
+def dense_output(
+    checker: ValidityChecker,
+    path: np.ndarray,
+    *,
+    spacing_rad: float = OUTPUT_SPACING_RAD,
+    resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
+    levers: tuple[float, np.ndarray] | None = None,
+    stats: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """The second stage's motion written out densely, so that the shared timing sees its shape.
+
+    The shared timing (timing.py) caps the speed at each knot by the change of direction there;
+    frames ``frame_spacing_rad`` apart, densified linearly by the timing or the smoother's curve
+    into 2-3 steps each, make a bend every few knots and the speed oscillates (issue 7:
+    arm under the back, J x D^5 11x that of the same frames written 5x denser). Two dense
+    versions of the frames, both ``spacing_rad`` apart or closer (scaled tangent norm):
+
+    - the frames' polyline resampled (``resample_path``): legal, as the frames' segments are;
+    - the uniform cubic B-spline of the frames (C2: no bend at the frames), kept only if every
+      sample and segment is legal at ``resolution_m``.
+
+    The one whose shared timing has the lower jerk at a common duration (J x D^5) is returned.
+
+    Args:
+        path: a legal motion, qpos rows, shape (K, nq).
+        stats: filled with ``output`` ("polyline" or "bspline") and ``output_frames``.
+
+    Returns:
+        qpos rows, shape (K', nq), K' >= K, same first and last row.
+    """
+    lev = levers if levers is not None else _levers(checker)
+    scale = _tangent_scale(checker, EnergyParams())
+    m = checker.model
+    path = np.asarray(path, dtype=float)
+    poly = resample_path(checker, path, spacing_rad, scale)
+    out, kind = poly, "polyline"
+    if len(path) > 2:
+        gaps = [float(np.linalg.norm(scale * tangent_difference(m, a, b))) for a, b in zip(path[:-1], path[1:])]
+        spline = _bspline_chart(checker, path, max(1, int(math.ceil(max(gaps) / spacing_rad))))
+        legal = all(checker.is_valid_qpos(q) for q in spline[1:-1]) and all(
+            segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=lev) for a, b in zip(spline[:-1], spline[1:])
+        )
+        if legal and _timed_roughness(checker, spline) < _timed_roughness(checker, poly):
+            out, kind = spline, "bspline"
+    if stats is not None:
+        stats.update(output=kind, output_frames=len(out))
+    return out
+
+
 
 FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
 
@@ -1182,11 +1343,14 @@ def plan_energy(
         if params.keyframes and len(q_leg) > 2:
             q_leg = safe_zone_keyframes(checker, q_leg, gli, threshold=params.gli_threshold, resolution_m=params.verify_resolution_m)
             stats["legs"][-1]["key_postures"] = len(q_leg)
+        if params.straighten_limbs and len(q_leg) > 2:
+            q_leg = straighten_limbs(checker, q_leg, resolution_m=params.verify_resolution_m, stats=stats["legs"][-1])
         if params.second_stage is not None and len(q_leg) > 1:
             s2: dict[str, Any] = {}
             q_leg = second_stage(checker, q_leg, params=params.second_stage, constraints=constraints,
                                  resolution_m=params.verify_resolution_m, root_translation_scale_m=params.root_translation_scale_m, stats=s2)
             stats["legs"][-1]["second_stage"] = s2
+            q_leg = dense_output(checker, q_leg, resolution_m=params.verify_resolution_m, stats=s2)
         rows.extend(q_leg if k == 0 else q_leg[1:])
     stats["seconds"] = time.monotonic() - t0
     stats["waypoints"] = len(rows)
