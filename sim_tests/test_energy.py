@@ -539,3 +539,17 @@ def test_that_plan_with_the_energy_planner_writes_the_same_trajectory_format(set
     assert np.allclose(e.q[0], start, atol=1e-9) and np.allclose(e.q[-1], goal, atol=1e-9)
     assert e.report["planner"]["name"] == "EnergyPlanner"
     assert set(e.report) == set(r.report)  # same report sections (planner, timing, ...)
+
+
+def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the_default():
+    from robot_rise.planning import bench_energy
+
+    planners = dict(bench_energy._planners())
+    assert set(planners) - {"ompl_rrtconnect"} <= set(bench_energy.PLANNER_NAMES)
+    assert set(bench_energy.ABLATIONS) <= set(planners)
+    default = planners["energy"].params
+    assert not planners["energy_nostraighten"].params.straighten_limbs and default.straighten_limbs
+    assert not planners["energy_nodense"].params.dense_output and default.dense_output
+    r1 = planners["energy_r1"].params  # the default before issue 7's second round
+    assert r1.second_stage.frame_spacing_rad == 0.05 and r1.second_stage.w_lm == 1.0
+    assert not r1.straighten_limbs and not r1.dense_output

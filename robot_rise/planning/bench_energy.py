@@ -20,7 +20,8 @@ Problem sets:
 
 Planners, all on the same strict ``ValidityChecker`` (flat scene):
 
-- ``energy``: ``EnergyPlanner()`` (this issue: Algorithm 2 and the section 5.2 key postures); every
+- ``energy``: ``EnergyPlanner()`` (this issue: Algorithm 2, the section 5.2 key postures, the
+  linkages straightened, the section 6.2 second stage, the motion written out densely); every
   path segment verified at 5 mm of travel;
 - ``rrt_blossom``: ``RRTBlossomPlanner`` (issue 5); edges at EDGE_RESOLUTION_M (10 mm);
 - ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
@@ -34,7 +35,9 @@ Planners, all on the same strict ``ValidityChecker`` (flat scene):
   reported beside it to show what the shortcut does to a path that is already short and smooth;
   ``energy_oldsmooth`` / ``energy_s2_oldsmooth`` / ``rrt_blossom_oldsmooth``: smoothed as before
   the smoother's repair a (``SmoothingConfig(restore_waypoints=False, max_rounds=8)``), the
-  "before" of issue 7's smoother change.
+  "before" of issue 7's smoother change; ``energy_r1``: the energy planner's default before issue
+  7's second round (second stage at 0.05 rad frames with the eq. 18 term, no straightening, no
+  dense output); ``energy_nostraighten`` / ``energy_nodense``: the default without one of them.
 
 Every solved path goes through the shared smoothing and timing (``plan_trajectory``: shortcut +
 B-spline smoothing re-verified with the checker at 2.5 mm, servo-limited timing) and is measured:
@@ -355,11 +358,13 @@ class BenchRow:
 
 
 PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
-                 "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth", "energy_abc", "energy_s2_abc", "rrt_blossom_abc")
+                 "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth", "energy_abc", "energy_s2_abc", "rrt_blossom_abc",
+                 "energy_r1", "energy_nostraighten", "energy_nodense")
 THREE = ("energy", "rrt_blossom", "ompl_rrtconnect")  # the issue's comparison; the others are ablations
 ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
              "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth",
-             "energy_abc", "energy_s2_abc", "rrt_blossom_abc")  # run only when named in --planners
+             "energy_abc", "energy_s2_abc", "rrt_blossom_abc",
+             "energy_r1", "energy_nostraighten", "energy_nodense")  # run only when named in --planners
 NO_SHORTCUT = ("energy_noshortcut", "energy_s2_noshortcut")  # smoothed without the shared shortcut (not the shared pipeline)
 # smoothed as before issue 7's smoother repair (hard corners only, no waypoints put back): the "before" rows
 OLD_SMOOTH = ("energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth")
@@ -406,6 +411,11 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
         ("energy_abc", EnergyPlanner()),  # the smoother without its candidate d (see run_benchmark)
         ("energy_s2_abc", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
         ("rrt_blossom_abc", RRTBlossomPlanner()),
+        # issue 7, second round: the default before it, and the default without each of its changes
+        ("energy_r1", EnergyPlanner(EnergyParams(straighten_limbs=False, dense_output=False,
+                                                 second_stage=SecondStageParams(frame_spacing_rad=0.05, w_lm=1.0)))),
+        ("energy_nostraighten", EnergyPlanner(EnergyParams(straighten_limbs=False))),
+        ("energy_nodense", EnergyPlanner(EnergyParams(dense_output=False))),
     ]
     if ompl_available():
         out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))

@@ -197,6 +197,7 @@ class EnergyParams:
         straighten_limbs: undo the expansion of the root and of each linkage that a leg's key
             postures do not need (``straighten_limbs``; ours, section 5.1's "unnecessary
             expansion"), before the second stage.
+        dense_output: write the second stage's motion out densely (``dense_output``).
         second_stage: project each leg's motion by ``second_stage`` (section 6.2); on by default
             (None: off). On by measurement (BENCHMARKS.md, issue 7): through the shared smoother
             it is smoother than the key postures alone on 58/60 lying problems and 15/15
@@ -222,6 +223,7 @@ class EnergyParams:
     ground_contacts: bool = True
     keyframes: bool = True
     straighten_limbs: bool = True
+    dense_output: bool = True
     second_stage: SecondStageParams | None = field(default_factory=SecondStageParams)
 
     def __post_init__(self) -> None:
@@ -1177,17 +1179,21 @@ def second_stage(
                 step[t] = _project_constraints(step[t], K, C, np.zeros(nv), ep)
         f = np.ones(n)
         f[0] = f[-1] = 0.0
+        cand = q.copy()
+        changed = f > 0  # frames whose candidate posture is new this round: only their checks can change
         for rnd in range(params.halvings + 2):
-            cand = np.array([tangent_step(m, q[t], step[t] * f[t] / scale) if f[t] > 0 else q[t] for t in range(n)])
-            cand[:, qj] = np.clip(cand[:, qj], lo, hi)
-            bad = np.array([f[t] > 0 and not checker.is_valid_qpos(cand[t]) for t in range(n)])
+            for t in np.flatnonzero(changed):
+                cand[t] = tangent_step(m, q[t], step[t] * f[t] / scale) if f[t] > 0 else q[t]
+                cand[t, qj] = np.clip(cand[t, qj], lo, hi)
+            bad = np.array([bool(changed[t] and f[t] > 0 and not checker.is_valid_qpos(cand[t])) for t in range(n)])
             for t in range(n - 1):
-                if (f[t] > 0 or f[t + 1] > 0) and not seg_ok(cand[t], cand[t + 1]):
+                if (changed[t] or changed[t + 1]) and (f[t] > 0 or f[t + 1] > 0) and not seg_ok(cand[t], cand[t + 1]):
                     bad[t] |= f[t] > 0
                     bad[t + 1] |= f[t + 1] > 0
             if not bad.any():
                 break
             f[bad] = 0.0 if rnd >= params.halvings else 0.5 * f[bad]
+            changed = bad
         else:  # refusals in the last round: keep the previous motion, which is legal
             cand = q
             f[:] = 0.0
@@ -1350,7 +1356,8 @@ def plan_energy(
             q_leg = second_stage(checker, q_leg, params=params.second_stage, constraints=constraints,
                                  resolution_m=params.verify_resolution_m, root_translation_scale_m=params.root_translation_scale_m, stats=s2)
             stats["legs"][-1]["second_stage"] = s2
-            q_leg = dense_output(checker, q_leg, resolution_m=params.verify_resolution_m, stats=s2)
+            if params.dense_output:
+                q_leg = dense_output(checker, q_leg, resolution_m=params.verify_resolution_m, stats=s2)
         rows.extend(q_leg if k == 0 else q_leg[1:])
     stats["seconds"] = time.monotonic() - t0
     stats["waypoints"] = len(rows)
