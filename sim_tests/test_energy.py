@@ -553,3 +553,14 @@ def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the
     r1 = planners["energy_r1"].params  # the default before issue 7's second round
     assert r1.second_stage.frame_spacing_rad == 0.05 and r1.second_stage.w_lm == 1.0
     assert not r1.straighten_limbs and not r1.dense_output
+
+
+def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_planner():
+    from robot_rise.planning.bench_energy import BenchRow, paired_jerk_table
+
+    def row(planner, variant, jerk):
+        return BenchRow(planner, "crossed", "crossed_arms", variant, True, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, 1.0, "")
+
+    rows = [row("energy", 0, 5.0), row("rrt_blossom", 0, 5.0), row("energy", 1, 1.0), row("rrt_blossom", 1, 2.0)]
+    table = paired_jerk_table(rows, "jerk")
+    assert table.splitlines()[-1] == "| crossed_arms | 2 | 1 | 0 | 1 |"

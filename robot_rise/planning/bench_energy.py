@@ -537,10 +537,14 @@ def summary_table(rows: list[BenchRow]) -> str:
 def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
     """Per problem label: on how many problems solved by all planners each planner had the lowest ``measure``.
 
-    ``jerk_common_duration`` must already be filled (``with_common_duration_jerk``) to rank by it.
+    A planner counts a problem only when it is strictly lowest there; equal lowest values (e.g. two
+    planners returning the same straight motion) are counted in the ``tied`` column, not given to
+    the first planner. ``jerk_common_duration`` must already be filled (``with_common_duration_jerk``)
+    to rank by it.
     """
     names = list(dict.fromkeys(r.planner for r in rows))
-    lines = ["| problem | solved by all | " + " | ".join(f"{n} lowest {measure.replace('_', ' ')}" for n in names) + " |", "| --- | --- |" + " --- |" * len(names)]
+    lines = ["| problem | solved by all | " + " | ".join(f"{n} lowest {measure.replace('_', ' ')}" for n in names) + " | tied |",
+             "| --- | --- |" + " --- |" * (len(names) + 1)]
     labels = list(dict.fromkeys(r.kind if r.pset == "crossed" else r.pset for r in rows))
     for lab in labels:
         by: dict[tuple[str, int], dict[str, BenchRow]] = {}
@@ -548,8 +552,16 @@ def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
             if (r.kind if r.pset == "crossed" else r.pset) == lab:
                 by.setdefault((r.kind, r.variant), {})[r.planner] = r
         common = [v for v in by.values() if len(v) == len(names) and all(x.solved for x in v.values())]
-        wins = {n: sum(1 for v in common if min(v.values(), key=lambda x: getattr(x, measure)).planner == n) for n in names}
-        lines.append(f"| {lab} | {len(common)} | " + " | ".join(str(wins[n]) for n in names) + " |")
+        wins = dict.fromkeys(names, 0)
+        tied = 0
+        for v in common:
+            low = min(getattr(x, measure) for x in v.values())
+            best = [n for n, x in v.items() if getattr(x, measure) <= low]
+            if len(best) == 1:
+                wins[best[0]] += 1
+            else:
+                tied += 1
+        lines.append(f"| {lab} | {len(common)} | " + " | ".join(str(wins[n]) for n in names) + f" | {tied} |")
     return "\n".join(lines)
 
 
