@@ -86,6 +86,7 @@ from robot_rise.planning.capsules import (
 )
 from robot_rise.planning.gli import LINKAGE_ORDER, GliMatrix, gli_difference
 from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
+from robot_rise.planning.timing import integrated_squared_jerk, time_parameterize
 from robot_rise.posture import Posture, posture_from_qpos
 from robot_rise.validity import ValidityChecker
 
@@ -199,9 +200,11 @@ class EnergyParams:
             expansion"), before the second stage.
         dense_output: write the second stage's motion out densely (``dense_output``).
         second_stage: project each leg's motion by ``second_stage`` (section 6.2); on by default
-            (None: off). On by measurement (BENCHMARKS.md, issue 7): through the shared smoother
-            it is smoother than the key postures alone on 58/60 lying problems and 15/15
-            crossed-limb problems (dimensionless jerk, median ratio 0.05), at ~6x the plan time.
+            (None: off). On by measurement (BENCHMARKS.md, issue 7, first round): through the
+            shared smoother it was smoother than the key postures alone on 58/60 lying problems
+            and 15/15 crossed-limb problems (dimensionless jerk, median ratio 0.05). With the
+            straightening and the dense output (second round) the planner is the smoothest of
+            the three benchmarked at a common duration on all 75 problems.
     """
 
     falloff_d: int = ENERGY_FALLOFF_D
@@ -1223,8 +1226,6 @@ def _bspline_chart(checker: ValidityChecker, path: np.ndarray, per_piece: int) -
 
 def _timed_roughness(checker: ValidityChecker, path: np.ndarray) -> float:
     """J x D^5 [rad^2] of the shared servo-limited timing of qpos rows: the jerk at a common duration."""
-    from robot_rise.planning.timing import integrated_squared_jerk, time_parameterize
-
     robot = checker.robot
     seq = PostureSequence.from_postures([posture_from_qpos(robot, checker.index, q) for q in path], robot.joint_names)
     timed = time_parameterize(seq, robot)
