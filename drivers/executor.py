@@ -91,7 +91,8 @@ class ExecutorConfig:
         # below MIN_RATE_HZ each step of the velocity limit becomes a jump the servo makes at
         # full speed (3 rad/s x 50 ms = 0.15 rad)
         if not MIN_RATE_HZ <= self.rate_hz <= 2000.0:
-            raise SafetyError(f"rate {self.rate_hz:g} Hz outside {MIN_RATE_HZ:g}..2000 Hz")
+            raise SafetyError(f"rate {self.rate_hz:g} Hz outside {MIN_RATE_HZ:g}..2000 Hz",
+                              hint="the default is 100 Hz; the bus's own limit is checked before streaming")
         if self.watchdog_s is not None:
             if not self.watchdog_s > 0:
                 raise SafetyError(f"watchdog timeout {self.watchdog_s} s must be positive")

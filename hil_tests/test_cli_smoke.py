@@ -98,8 +98,9 @@ def test_that_execute_refuses_a_trajectory_proven_on_changed_robot_files(
         (None, ["--approach", "-1"], "approach time -1.0 s must be positive"),
         (None, ["--rt-priority", "500"], "real-time priority 500 outside 1..99"),
         (None, ["--log", "/proc/no/such/dir/run.csv"], "cannot write the log /proc/no/such/dir/run.csv"),
+        (None, ["--rate", "5"], "rate 5 Hz outside 20..2000 Hz"),
     ],
-    ids=["far-outside-limits", "negative-approach", "bad-priority", "unwritable-log"],
+    ids=["far-outside-limits", "negative-approach", "bad-priority", "unwritable-log", "rate-too-low"],
 )
 def test_that_bad_execute_input_is_one_error_line_before_anything_moves(
         robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str], edit, args, message) -> None:
