@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import time
 
 import mujoco
 import numpy as np
@@ -564,3 +566,77 @@ def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_pl
     rows = [row("energy", 0, 5.0), row("rrt_blossom", 0, 5.0), row("energy", 1, 1.0), row("rrt_blossom", 1, 2.0)]
     table = paired_jerk_table(rows, "jerk")
     assert table.splitlines()[-1] == "| crossed_arms | 2 | 1 | 0 | 1 |"
+
+
+def _legal_path(checker, q):
+    return all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(q[:-1], q[1:]))
+
+
+def test_that_the_second_stage_stops_between_iterations_once_its_deadline_has_passed(setup, problems):
+    robot, checker, _ = setup
+    keys = _key_path(checker, problems["crossed_legs"])
+    stats: dict = {}
+    out = energy_module.second_stage(checker, keys, deadline=time.monotonic() - 1.0, stats=stats)
+    assert stats["stopped_on_budget"] and stats["iterations"] == 0
+    assert np.array_equal(out, energy_module.resample_path(checker, keys, energy_module.SecondStageParams().frame_spacing_rad))
+    assert _legal_path(checker, out)
+    free: dict = {}
+    energy_module.second_stage(checker, keys, deadline=time.monotonic() + 60.0, stats=free)
+    assert not free["stopped_on_budget"] and free["iterations"] > 0
+
+
+def test_that_each_refinement_step_keeps_a_legal_motion_when_its_deadline_has_passed(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_arms"]
+    raw = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), budget_s=30.0)
+    assert raw.status is PlanStatus.EXACT_SOLUTION
+    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
+    gone = time.monotonic() - 1.0
+    s: dict = {}
+    keys = energy_module.safe_zone_keyframes(checker, raw.qpos, gli, deadline=gone, stats=s)
+    assert s["stopped_on_budget"] and np.array_equal(keys, raw.qpos)  # nothing reduced: the raw, legal path
+    keys = _unstraightened_keys(checker, p)
+    s = {}
+    assert np.array_equal(energy_module.straighten_limbs(checker, keys, deadline=gone, stats=s), keys)
+    assert s["stopped_on_budget"] and s["straightened"] == []
+    frames = energy_module.second_stage(checker, keys)
+    s = {}
+    out = energy_module.dense_output(checker, frames, deadline=gone, stats=s)
+    assert s["stopped_on_budget"] and s["output"] == "polyline" and _legal_path(checker, out)
+
+
+@pytest.mark.parametrize("budget_s", [0.05, 0.3])
+def test_that_the_planner_keeps_a_tiny_budget_and_returns_a_legal_path(setup, problems, monkeypatch, budget_s):
+    robot, checker, _ = setup
+    p = problems["crossed_legs"]
+    # the first stage computed beforehand (it alone can take longer than the budget): what is
+    # timed is the refinement after it, which used to run to the end whatever the budget
+    first = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), budget_s=30.0)
+    assert first.status is PlanStatus.EXACT_SOLUTION
+    monkeypatch.setattr(energy_module, "energy_interpolate", lambda *a, **k: dataclasses.replace(first, stats=dict(first.stats)))
+    plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))  # warm-up: first imports (scipy.sparse) are not the planner's
+    t0 = time.monotonic()
+    result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=budget_s))
+    elapsed = time.monotonic() - t0
+    assert result.solved, result.reason
+    assert elapsed < budget_s + 0.25  # one indivisible step (a second-stage iteration, a segment check) past it
+    assert result.stats["stopped_on_budget"]  # named in the result (and logged)
+    q = result.path.qpos(checker)
+    assert np.allclose(q[0], checker.qpos_of(p.start)) and np.allclose(q[-1], checker.qpos_of(p.goal), atol=1e-9)
+    assert _legal_path(checker, q)
+
+
+def test_that_a_budget_spent_in_the_first_stage_is_a_timeout_on_time(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_legs"]
+    t0 = time.monotonic()
+    result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=0.02))
+    assert result.status is PlanStatus.TIMEOUT and time.monotonic() - t0 < 0.02 + 0.25
+
+
+def test_that_the_default_budget_is_not_reached_on_the_crossed_limb_problems(setup, problems):
+    robot, checker, _ = setup
+    p = problems["crossed_legs"]
+    result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))
+    assert result.solved and result.stats["stopped_on_budget"] == []
+    assert result.stats["legs"][-1]["second_stage"]["stopped_on_budget"] is False

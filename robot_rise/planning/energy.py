@@ -697,6 +697,11 @@ def _tangent_scale(checker: ValidityChecker, p: EnergyParams) -> np.ndarray:
     return scale
 
 
+def _past(deadline: float | None) -> bool:
+    """Has the ``time.monotonic()`` deadline passed (None: no deadline)?"""
+    return deadline is not None and time.monotonic() >= deadline
+
+
 def energy_interpolate(
     checker: ValidityChecker,
     qpos_start: np.ndarray,
@@ -891,6 +896,8 @@ def safe_zone_keyframes(
     threshold: float = GLI_SAFE_ZONE_THRESHOLD,
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     levers: tuple[float, np.ndarray] | None = None,
+    deadline: float | None = None,
+    stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
     """The key postures of a legal path: consecutive ones linearly interpolable (paper 004 section 5.2).
 
@@ -904,24 +911,37 @@ def safe_zone_keyframes(
 
     Args:
         path: a legal path as qpos rows, shape (K, nq).
+        deadline: ``time.monotonic()`` value; once passed, the postures after the last key posture
+            found are all kept (the raw path's legal segments), so the result is legal but longer.
+        stats: filled with ``stopped_on_budget`` (True when the deadline ended the reduction).
 
     Returns:
         the key postures, shape (K', nq), K' <= K, same first and last row.
     """
     lev = levers if levers is not None else _levers(checker)
-    mats = [gli(q) for q in path]
+    mats: dict[int, np.ndarray] = {}
     n = len(path)
 
+    def mat(i: int) -> np.ndarray:
+        if i not in mats:
+            mats[i] = gli(path[i])
+        return mats[i]
+
     def ok(i: int, j: int) -> bool:
-        return gli_difference(mats[i], mats[j]) < threshold and segment_is_valid(checker, path[i], path[j], resolution_m=resolution_m, levers=lev)
+        return gli_difference(mat(i), mat(j)) < threshold and segment_is_valid(checker, path[i], path[j], resolution_m=resolution_m, levers=lev)
 
     keep = [0]
     i = 0
+    stopped = False
     while i < n - 1:
+        if _past(deadline):
+            stopped = True
+            keep.extend(range(i + 1, n))
+            break
         lo, hi = i + 1, n - 1  # lo: legal (a verified raw segment)
         if ok(i, hi):
             lo = hi
-        while lo < hi:
+        while lo < hi and not _past(deadline):
             mid = (lo + hi + 1) // 2
             if ok(i, mid):
                 lo = mid
@@ -929,6 +949,8 @@ def safe_zone_keyframes(
                 hi = mid - 1
         keep.append(lo)
         i = lo
+    if stats is not None:
+        stats["stopped_on_budget"] = stopped
     return path[keep]
 
 
@@ -948,6 +970,7 @@ def straighten_limbs(
     *,
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     levers: tuple[float, np.ndarray] | None = None,
+    deadline: float | None = None,
     stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
     """Undo the expansion of the root and of each linkage that the problem does not need.
@@ -965,7 +988,9 @@ def straighten_limbs(
 
     Args:
         path: legal key postures as qpos rows, shape (K, nq).
-        stats: filled with ``straightened``: the names of the parts made straight.
+        deadline: ``time.monotonic()`` value; once passed, the remaining parts are left as they are.
+        stats: filled with ``straightened``: the names of the parts made straight, and
+            ``stopped_on_budget`` (True when the deadline left parts untried).
 
     Returns:
         qpos rows, shape (K, nq).
@@ -975,10 +1000,14 @@ def straighten_limbs(
     scale = _tangent_scale(checker, EnergyParams())
     q = np.array(path, dtype=float)
     done: list[str] = []
+    stopped = False
     if len(q) > 2:
         qj = checker.index.qpos_joints
         lo, hi = checker.robot.joint_lower, checker.robot.joint_upper
         for name, dofs in _limb_dofs(checker):
+            if _past(deadline):
+                stopped = True
+                break
             y = np.array([tangent_difference(m, q[0], x) for x in q])
             seg = np.linalg.norm(np.diff(scale * y, axis=0), axis=1)
             u = np.concatenate([[0.0], np.cumsum(seg)]) / max(float(seg.sum()), 1e-12)
@@ -996,6 +1025,7 @@ def straighten_limbs(
                 done.append(name)
     if stats is not None:
         stats["straightened"] = done
+        stats["stopped_on_budget"] = stopped
     return q
 
 
@@ -1091,6 +1121,7 @@ def second_stage(
     constraints: tuple[PositionalConstraint, ...] = (),
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M,
+    deadline: float | None = None,
     stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
     """Project a legal first-stage motion onto the constraint manifold of paper 004 section 6.2.
@@ -1115,8 +1146,11 @@ def second_stage(
     Args:
         path: a legal motion (every row legal, every straight segment legal at ``resolution_m``),
             qpos rows, shape (K, nq).
-        stats: filled with frames, iterations, held (frame changes refused) and Laplacian energy
-            before / after.
+        deadline: ``time.monotonic()`` value checked before each iteration; once passed, the
+            motion of the last finished iteration is returned (legal, less smooth).
+        stats: filled with frames, iterations (finished ones), held (frame changes refused),
+            Laplacian energy before / after and ``stopped_on_budget`` (True when the deadline
+            ended the iterations).
 
     Returns:
         the projected motion, qpos rows, shape (K', nq): same first and last row, legal at
@@ -1132,7 +1166,7 @@ def second_stage(
     q = resample_path(checker, np.asarray(path, dtype=float), params.frame_spacing_rad, scale)
     n, nv = len(q), int(m.nv)
     st = stats if stats is not None else {}
-    st.update(frames=n, iterations=0, held=0, laplacian_before=trajectory_laplacian_energy(checker, q, scale))
+    st.update(frames=n, iterations=0, held=0, stopped_on_budget=False, laplacian_before=trajectory_laplacian_energy(checker, q, scale))
     if n < 3 or params.iterations == 0:
         st["laplacian_after"] = st["laplacian_before"]
         return q
@@ -1150,6 +1184,9 @@ def second_stage(
         return segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=levers)
 
     for it in range(params.iterations):
+        if _past(deadline):  # every finished iteration's motion is legal: stop between two
+            st["stopped_on_budget"] = True
+            break
         st["iterations"] = it + 1
         y = np.array([scale * tangent_difference(m, q_ref, x) for x in q])  # (n, nv)
         rhs = -params.w_lap * (DtD @ y)[inner].ravel()
@@ -1239,6 +1276,7 @@ def dense_output(
     spacing_rad: float = OUTPUT_SPACING_RAD,
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     levers: tuple[float, np.ndarray] | None = None,
+    deadline: float | None = None,
     stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
     """The second stage's motion written out densely, so that the shared timing sees its shape.
@@ -1257,7 +1295,10 @@ def dense_output(
 
     Args:
         path: a legal motion, qpos rows, shape (K, nq).
-        stats: filled with ``output`` ("polyline" or "bspline") and ``output_frames``.
+        deadline: ``time.monotonic()`` value; once passed (while the curve is checked or before
+            the two are timed), the polyline is returned.
+        stats: filled with ``output`` ("polyline" or "bspline"), ``output_frames`` and
+            ``stopped_on_budget`` (True when the deadline left the curve unchecked or untimed).
 
     Returns:
         qpos rows, shape (K', nq), K' >= K, same first and last row.
@@ -1268,18 +1309,74 @@ def dense_output(
     path = np.asarray(path, dtype=float)
     poly = resample_path(checker, path, spacing_rad, scale)
     out, kind = poly, "polyline"
+    stopped = False
     if len(path) > 2:
         gaps = [float(np.linalg.norm(scale * tangent_difference(m, a, b))) for a, b in zip(path[:-1], path[1:])]
         spline = _bspline_chart(checker, path, max(1, int(math.ceil(max(gaps) / spacing_rad))))
-        legal = all(checker.is_valid_qpos(q) for q in spline[1:-1]) and all(
-            segment_is_valid(checker, a, b, resolution_m=resolution_m, levers=lev) for a, b in zip(spline[:-1], spline[1:])
-        )
+        legal = True
+        for k in range(1, len(spline)):  # sample k and the segment that ends there (the last sample is the path's)
+            if _past(deadline):
+                legal, stopped = False, True
+                break
+            if (k < len(spline) - 1 and not checker.is_valid_qpos(spline[k])) or not segment_is_valid(
+                checker, spline[k - 1], spline[k], resolution_m=resolution_m, levers=lev
+            ):
+                legal = False
+                break
+        if legal and _past(deadline):
+            legal, stopped = False, True
         if legal and _timed_roughness(checker, spline) < _timed_roughness(checker, poly):
             out, kind = spline, "bspline"
     if stats is not None:
-        stats.update(output=kind, output_frames=len(out))
+        stats.update(output=kind, output_frames=len(out), stopped_on_budget=stopped)
     return out
 
+
+
+def _refine_leg(
+    checker: ValidityChecker,
+    q_leg: np.ndarray,
+    gli: GliMatrix,
+    params: EnergyParams,
+    constraints: tuple[PositionalConstraint, ...],
+    deadline: float,
+    leg_stats: dict[str, Any],
+) -> np.ndarray:
+    """One leg's legal first-stage motion reduced and smoothed as ``params`` asks, within ``deadline``.
+
+    Key postures, straightening, second stage and dense output in turn, each legal wherever its
+    input is; ``leg_stats`` gets their counters and ``stopped_on_budget``, the steps that the
+    deadline cut short (an empty list when none). Returns qpos rows, shape (K', nq).
+    """
+    stopped: list[str] = []
+    res = params.verify_resolution_m
+    if params.keyframes and len(q_leg) > 2:
+        s: dict[str, Any] = {}
+        q_leg = safe_zone_keyframes(checker, q_leg, gli, threshold=params.gli_threshold, resolution_m=res, deadline=deadline, stats=s)
+        leg_stats["key_postures"] = len(q_leg)
+        if s["stopped_on_budget"]:
+            stopped.append("key postures")
+    if params.straighten_limbs and len(q_leg) > 2:
+        s = {}
+        q_leg = straighten_limbs(checker, q_leg, resolution_m=res, deadline=deadline, stats=s)
+        leg_stats["straightened"] = s["straightened"]
+        if s["stopped_on_budget"]:
+            stopped.append("straightening")
+    if params.second_stage is not None and len(q_leg) > 1:
+        s2: dict[str, Any] = {}
+        q_leg = second_stage(checker, q_leg, params=params.second_stage, constraints=constraints, resolution_m=res,
+                             root_translation_scale_m=params.root_translation_scale_m, deadline=deadline, stats=s2)
+        leg_stats["second_stage"] = s2
+        if s2["stopped_on_budget"]:
+            stopped.append("second stage")
+        if params.dense_output:
+            s = {}
+            q_leg = dense_output(checker, q_leg, resolution_m=res, deadline=deadline, stats=s)
+            s2.update(output=s["output"], output_frames=s["output_frames"])
+            if s["stopped_on_budget"]:
+                stopped.append("dense output")
+    leg_stats["stopped_on_budget"] = stopped
+    return q_leg
 
 
 FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
@@ -1297,7 +1394,12 @@ def plan_energy(
     Plans start -> goal (through ``problem.key`` when given, as two legs) with
     ``energy_interpolate``. Local minima depend on the fall-off exponent d (paper 004 section 8),
     so after a FAILED leg the other exponents of ``retry_falloffs`` are tried in turn within the
-    budget. Deterministic: ``problem.seed`` is not used (no randomness).
+    budget. Once every leg has its legal first-stage motion, each is reduced and smoothed
+    (key postures, straightening, second stage, dense output) in what is left of
+    ``problem.budget_s``: each of those steps only ever replaces a legal motion by another legal
+    one, so when the budget runs out they stop where they are and the motion is returned legal
+    but less smooth (``stats["stopped_on_budget"]`` names the steps cut short, and a warning is
+    logged). Deterministic while the budget is not reached: ``problem.seed`` is not used.
 
     Returns:
         PlanResult with a PostureSequence path on success, or a status and a reason.
@@ -1305,11 +1407,12 @@ def plan_energy(
     checker = problem.checker
     robot = checker.robot
     t0 = time.monotonic()
+    deadline = t0 + problem.budget_s
     gli = GliMatrix(robot, checker.model, checker.index)
     schedule = [params.falloff_d] + [d for d in retry_falloffs if d != params.falloff_d]
     energies: dict[int, RepulsiveEnergy] = {}
     legs = [problem.start, problem.goal] if problem.key is None else [problem.start, problem.key, problem.goal]
-    rows: list[np.ndarray] = []
+    first: list[tuple[np.ndarray, dict[str, Any]]] = []  # each leg's first-stage motion and its stats
     stats: dict[str, Any] = {"planner": "energy", "legs": []}
     for k in range(len(legs) - 1):
         reasons = []
@@ -1346,20 +1449,17 @@ def plan_energy(
             reason = "; ".join(reasons) if status is PlanStatus.FAILED and reasons else out.reason
             stats["seconds"] = time.monotonic() - t0
             return PlanResult(status, None, f"leg {k}: {reason}" if len(legs) > 2 else reason, stats)
-        q_leg = out.qpos
-        if params.keyframes and len(q_leg) > 2:
-            q_leg = safe_zone_keyframes(checker, q_leg, gli, threshold=params.gli_threshold, resolution_m=params.verify_resolution_m)
-            stats["legs"][-1]["key_postures"] = len(q_leg)
-        if params.straighten_limbs and len(q_leg) > 2:
-            q_leg = straighten_limbs(checker, q_leg, resolution_m=params.verify_resolution_m, stats=stats["legs"][-1])
-        if params.second_stage is not None and len(q_leg) > 1:
-            s2: dict[str, Any] = {}
-            q_leg = second_stage(checker, q_leg, params=params.second_stage, constraints=constraints,
-                                 resolution_m=params.verify_resolution_m, root_translation_scale_m=params.root_translation_scale_m, stats=s2)
-            stats["legs"][-1]["second_stage"] = s2
-            if params.dense_output:
-                q_leg = dense_output(checker, q_leg, resolution_m=params.verify_resolution_m, stats=s2)
+        first.append((out.qpos, out.stats))
+    rows: list[np.ndarray] = []
+    stopped: list[str] = []
+    for k, (q_leg, leg_stats) in enumerate(first):
+        q_leg = _refine_leg(checker, q_leg, gli, params, constraints, deadline, leg_stats)
+        stopped += [f"leg {k}: {step}" if len(first) > 1 else step for step in leg_stats["stopped_on_budget"]]
         rows.extend(q_leg if k == 0 else q_leg[1:])
+    stats["stopped_on_budget"] = stopped
+    if stopped:
+        log.warning("energy planner: budget of %.3g s reached in %s; returning the legal motion as it stood (less smooth)",
+                    problem.budget_s, ", ".join(stopped))
     stats["seconds"] = time.monotonic() - t0
     stats["waypoints"] = len(rows)
     postures: list[Posture] = [posture_from_qpos(robot, checker.index, q) for q in rows]
