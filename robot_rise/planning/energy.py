@@ -85,6 +85,7 @@ from robot_rise.planning.capsules import (
     world_capsules,
 )
 from robot_rise.planning.gli import LINKAGE_ORDER, GliMatrix, gli_difference
+from robot_rise.planning.motion_validator import lever_arms
 from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
 from robot_rise.planning.timing import integrated_squared_jerk, time_parameterize
 from robot_rise.posture import Posture, posture_from_qpos
@@ -457,17 +458,6 @@ def _travel_bound(levers: tuple[float, np.ndarray], v: np.ndarray, idx_root: sli
     return float(np.linalg.norm(v[0:3]) + r_root * np.linalg.norm(v[3:6]) + np.sum(r_joint * np.abs(v[dof_joints])))
 
 
-def _levers(checker: ValidityChecker) -> tuple[float, np.ndarray]:
-    """Lever arms of the robot geometry: the other planner's bound if present, else a safe constant."""
-    try:
-        from robot_rise.planning.motion_validator import lever_arms  # the RRT-blossom engineer's bound
-
-        r_root, r_joint = lever_arms(checker)
-        return float(r_root), np.asarray(r_joint, dtype=float)
-    except Exception:  # absent or changed: a conservative bound for a 0.51 m robot
-        return 0.4, np.full(len(checker.robot.joint_names), 0.35)
-
-
 def segment_is_valid(
     checker: ValidityChecker,
     qpos_a: np.ndarray,
@@ -484,7 +474,7 @@ def segment_is_valid(
     """
     m = checker.model
     v = tangent_difference(m, qpos_a, qpos_b)
-    lev = levers if levers is not None else _levers(checker)
+    lev = levers if levers is not None else lever_arms(checker)
     n = max(1, int(math.ceil(_travel_bound(lev, v, slice(0, 6), checker.index.dof_joints) / resolution_m)))
     for k in range(n + 1):
         if not checker.is_valid_qpos(tangent_step(m, qpos_a, v * (k / n))):
@@ -745,7 +735,7 @@ def energy_interpolate(
     gli = gli if gli is not None else GliMatrix(checker.robot, m, checker.index)
     scale = _tangent_scale(checker, p)
     cons = _Constraints(checker, constraints, scale)
-    levers = _levers(checker)
+    levers = lever_arms(checker)
     root = np.asarray(checker.index.qvel_root)
     alpha = p.step_rad
 
@@ -918,7 +908,7 @@ def safe_zone_keyframes(
     Returns:
         the key postures, shape (K', nq), K' <= K, same first and last row.
     """
-    lev = levers if levers is not None else _levers(checker)
+    lev = levers if levers is not None else lever_arms(checker)
     mats: dict[int, np.ndarray] = {}
     n = len(path)
 
@@ -996,7 +986,7 @@ def straighten_limbs(
         qpos rows, shape (K, nq).
     """
     m = checker.model
-    lev = levers if levers is not None else _levers(checker)
+    lev = levers if levers is not None else lever_arms(checker)
     scale = _tangent_scale(checker, EnergyParams())
     q = np.array(path, dtype=float)
     done: list[str] = []
@@ -1162,7 +1152,7 @@ def second_stage(
     m = checker.model
     ep = dataclasses.replace(EnergyParams(), root_translation_scale_m=root_translation_scale_m)
     scale = _tangent_scale(checker, ep)
-    levers = _levers(checker)
+    levers = lever_arms(checker)
     q = resample_path(checker, np.asarray(path, dtype=float), params.frame_spacing_rad, scale)
     n, nv = len(q), int(m.nv)
     st = stats if stats is not None else {}
@@ -1303,7 +1293,7 @@ def dense_output(
     Returns:
         qpos rows, shape (K', nq), K' >= K, same first and last row.
     """
-    lev = levers if levers is not None else _levers(checker)
+    lev = levers if levers is not None else lever_arms(checker)
     scale = _tangent_scale(checker, EnergyParams())
     m = checker.model
     path = np.asarray(path, dtype=float)
