@@ -105,12 +105,19 @@ GROUND_GAP_M = 0.0005  # lying postures rest this far above the ground
 
 @dataclass(frozen=True)
 class CrossedProblem:
-    """One benchmark problem: a kind, a variant number and the two postures."""
+    """One benchmark problem: a kind, a variant number and the two postures.
+
+    Attributes:
+        goal_rank, goal_frame: lying60 only, which library candidate the goal is (0 = the nearest)
+            and its ``motion@frame``; 0 and "" for the crossed-limb problems.
+    """
 
     kind: str
     variant: int
     start: Posture
     goal: Posture
+    goal_rank: int = 0
+    goal_frame: str = ""
 
 
 def supine_quat_wxyz() -> np.ndarray:
@@ -222,7 +229,7 @@ def lying60_problems(robot: Robot, checker: ValidityChecker, *, seed: int = 1, p
     and put on the ground at the start's position (``connecting_posture``). When that placed
     posture is itself illegal (e.g. a library frame slightly outside a joint limit), no planner
     can reach it; ``rise`` then moves on to its next candidate, and so do we (nearest legal one of
-    the ``DEFAULT_CANDIDATES`` candidates; ``goal_rank`` in ``LYING60_GOAL_RANKS`` records which).
+    the ``DEFAULT_CANDIDATES`` candidates; each problem's ``goal_rank`` and ``goal_frame`` record which).
     """
     from robot_rise.rise import DEFAULT_CANDIDATES, RiseContext, connecting_posture, connection_candidates
     from robot_rise.sampling import sample_lying_postures
@@ -238,14 +245,10 @@ def lying60_problems(robot: Robot, checker: ValidityChecker, *, seed: int = 1, p
                 if checker.is_valid(goal):
                     break
             rank, conn, goal = goals[-1]
-            LYING60_GOAL_RANKS[(kind, i)] = (rank, f"{conn.motion}@{conn.frame}")
             if rank:
                 log.warning("lying60 %s/%d: nearest library frame(s) illegal when placed; using candidate %d (%s@%d)", kind, i, rank, conn.motion, conn.frame)
-            out.append(CrossedProblem(kind, i, start, goal))
+            out.append(CrossedProblem(kind, i, start, goal, rank, f"{conn.motion}@{conn.frame}"))
     return out
-
-
-LYING60_GOAL_RANKS: dict[tuple[str, int], tuple[int, str]] = {}  # (kind, variant) -> (candidate rank, motion@frame)
 
 
 def library_digest(robot: Robot) -> str:
@@ -275,17 +278,18 @@ def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind:
         data = json.loads(Path(cache).read_text())
         if data.get("key") == key:
             log.warning("lying60 problems from %s (library digest %s; now %s)", cache, data.get("library_digest"), library_digest(robot))
-            for d in data["problems"]:
-                LYING60_GOAL_RANKS[(d["kind"], d["variant"])] = (d.get("goal_rank", 0), d.get("goal_frame", ""))
-            return [CrossedProblem(d["kind"], d["variant"], posture_from_dict(d["start"]), posture_from_dict(d["goal"])) for d in data["problems"]]
+            return [
+                CrossedProblem(d["kind"], d["variant"], posture_from_dict(d["start"]), posture_from_dict(d["goal"]), d.get("goal_rank", 0), d.get("goal_frame", ""))
+                for d in data["problems"]
+            ]
         log.warning("%s holds other lying problems (%s); sampling again", cache, data.get("key"))
     digest = library_digest(robot)
     out = lying60_problems(robot, checker, seed=seed, per_kind=per_kind)
     if cache:
         Path(cache).parent.mkdir(parents=True, exist_ok=True)
         rows = [
-            {"kind": p.kind, "variant": p.variant, "goal_rank": LYING60_GOAL_RANKS[(p.kind, p.variant)][0],
-             "goal_frame": LYING60_GOAL_RANKS[(p.kind, p.variant)][1], "start": posture_to_dict(p.start), "goal": posture_to_dict(p.goal)}
+            {"kind": p.kind, "variant": p.variant, "goal_rank": p.goal_rank, "goal_frame": p.goal_frame,
+             "start": posture_to_dict(p.start), "goal": posture_to_dict(p.goal)}
             for p in out
         ]
         Path(cache).write_text(json.dumps({"key": key, "library_digest": digest, "problems": rows}))
