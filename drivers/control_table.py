@@ -23,6 +23,7 @@ from drivers.errors import ControlTableError
 
 __all__ = [
     "BAUD_RATE_BY_INDEX",
+    "BAUD_INDEX_BY_RATE",
     "Register",
     "ControlTable",
     "control_table",
@@ -50,6 +51,7 @@ CENTER_TICKS = 2048
 # Baud Rate register (address 8) value -> bit/s, X-series e-manual
 BAUD_RATE_BY_INDEX: Mapping[int, int] = MappingProxyType({0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000,
                                                          5: 3_000_000, 6: 4_000_000, 7: 4_500_000})
+BAUD_INDEX_BY_RATE: Mapping[int, int] = MappingProxyType({rate: i for i, rate in BAUD_RATE_BY_INDEX.items()})
 RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_REV  # [rad/tick]
 VELOCITY_UNIT_RAD_S = 0.229 * 2.0 * math.pi / 60.0  # [rad/s per unit] (0.229 rev/min)
 VOLTAGE_UNIT_V = 0.1  # [V per unit]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO
@@ -26,8 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_scheduling
+from drivers.control_table import WATCHDOG_UNIT_S
 from drivers.errors import CommunicationError, SafetyError
-from drivers.group import GOAL_PWM, Feedback, ServoGroup
+from drivers.group import GOAL_PWM, GOAL_PWM_SIZE, Feedback, ServoGroup
 from drivers.safety import (
     Fault,
     FaultKind,
@@ -36,6 +37,7 @@ from drivers.safety import (
     approach_path,
     check_start,
     evaluate_feedback,
+    limp_pwm_ramp,
     require_inside_limits,
     safe_target,
 )
@@ -65,11 +67,6 @@ class ExecutorConfig:
         log_path: CSV log of commanded vs present per cycle (None: no log).
         realtime_priority: run the loop under SCHED_FIFO at this priority (1..99; needs root
             or CAP_SYS_NICE, refused with a warning otherwise); None: normal scheduling.
-        watchdog_s: the Bus Watchdog timeout the caller armed (:func:`drivers.startup.engage`)
-            [s], or None. With it, the rate must feed the watchdog at least twice per timeout,
-            a host stall longer than the timeout (the servos have stopped themselves) is a
-            DEADLINE fault, and the stop clears a tripped watchdog and re-arms it so that its
-            own writes are accepted.
         cpu_latency_us: while streaming, keep every CPU out of idle states slower to leave
             than this [us] (Linux PM QoS, :func:`drivers.clock.cpu_wakeup_latency`; skipped with
             a note where not permitted); None: CPUs idle freely (less power, later wake-ups).
@@ -84,7 +81,6 @@ class ExecutorConfig:
     recovery_attempts: int = 2
     log_path: Path | None = None
     realtime_priority: int | None = None
-    watchdog_s: float | None = None
     cpu_latency_us: int | None = 0
 
     def __post_init__(self) -> None:
@@ -93,13 +89,6 @@ class ExecutorConfig:
         if not MIN_RATE_HZ <= self.rate_hz <= 2000.0:
             raise SafetyError(f"rate {self.rate_hz:g} Hz outside {MIN_RATE_HZ:g}..2000 Hz",
                               hint="the default is 100 Hz; the bus's own limit is checked before streaming")
-        if self.watchdog_s is not None:
-            if not self.watchdog_s > 0:
-                raise SafetyError(f"watchdog timeout {self.watchdog_s} s must be positive")
-            if 2.0 / self.rate_hz > self.watchdog_s:
-                raise SafetyError(f"rate {self.rate_hz:g} Hz feeds the {self.watchdog_s * 1e3:.0f} ms Bus Watchdog "
-                                  f"less than twice per timeout; the servos would stop themselves",
-                                  hint=f"use a rate of at least {math.ceil(2.0 / self.watchdog_s):.0f} Hz")
         if not 0.0 < self.speed <= 2.0:
             raise SafetyError(f"speed {self.speed} outside (0, 2]")
         if self.approach_s is not None and not (self.approach_s > 0 and math.isfinite(self.approach_s)):
@@ -255,7 +244,7 @@ class Executor:
         if not np.all(np.isfinite(q)):
             raise SafetyError("trajectory contains NaN or infinite angles")
         require_inside_limits(q_present, self.limits.lower_rad, self.limits.upper_rad,
-                              [f"{sp.joint} (id {sp.id})" for sp in self.group.map.servos], "not streaming")
+                              [sp.label for sp in self.group.map.servos], "not streaming")
         idx = self.group.map.index_of(joint_names)
         qm = q[:, idx]
         tm = (t - t[0]) / self.config.speed
@@ -289,6 +278,7 @@ class Executor:
             missing = [sid for sid, ok in zip(group.ids, fb0.valid) if not ok]
             raise SafetyError(f"no present position from servo(s) {missing}; refusing to start")
         t_run, q_run = self.prepare(joint_names, t, q, fb0.position_rad)
+        watchdog_s = self._armed_watchdog_s()
         pwm_limits = self._pwm_limits()
         dt = 1.0 / cfg.rate_hz
         t_end = float(t_run[-1]) + cfg.hold_s
@@ -325,10 +315,10 @@ class Executor:
                 wait_cpu.append(time.thread_time() - w0)
                 start = clock.now()
                 lateness.append(start - t_nominal)
-                if cfg.watchdog_s is not None and start - last_sent > cfg.watchdog_s:
-                    faults = [Fault(FaultKind.DEADLINE, -1, start - last_sent, cfg.watchdog_s,
+                if watchdog_s is not None and start - last_sent > watchdog_s:
+                    faults = [Fault(FaultKind.DEADLINE, -1, start - last_sent, watchdog_s,
                                     f"host stalled {(start - last_sent) * 1e3:.0f} ms, longer than the "
-                                    f"{cfg.watchdog_s * 1e3:.0f} ms Bus Watchdog: the servos stopped themselves")]
+                                    f"{watchdog_s * 1e3:.0f} ms Bus Watchdog: the servos stopped themselves")]
                     _log.error("abort: %s", faults[0].message)
                     break
                 if start - t_nominal > dt:
@@ -379,16 +369,14 @@ class Executor:
         except Exception as e:  # noqa: BLE001 - a host error must still end in a controlled stop
             faults = [Fault(FaultKind.HOST, -1, 0, 0, f"host error in the control loop: {type(e).__name__}: {e}")]
             _log.exception("abort: %s", faults[0].message)
-        finally:
-            if log:
-                log.close()
         hold = q_prev if not faults and commands else None  # a normal end holds the final command
-        try:
-            recovery = self._stop(last_fb, faults, pwm_limits, hold)
-        except Exception as e:  # noqa: BLE001 - report it; the servos' watchdog is the last resort
-            _log.exception("the stop could not complete")
-            faults = [*faults, Fault(FaultKind.COMMUNICATION, -1, 0, 0, f"the stop could not complete: {e}")]
-            recovery = None
+        recovery, problems = self._stop(last_fb, faults, pwm_limits, watchdog_s, hold)
+        faults = [*faults, *(Fault(FaultKind.COMMUNICATION, -1, 0, 0, text) for text in problems)]
+        if log:  # after the stop: a failing disk must not delay it
+            try:
+                log.close()
+            except OSError as e:
+                faults.append(Fault(FaultKind.HOST, -1, 0, 0, f"the cycle log {cfg.log_path} is incomplete: {e}"))
         stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs, wait_cpu=wait_cpu)
         if resyncs:
             _log.warning("%d stall(s) longer than a period: schedule re-anchored, motion delayed", resyncs)
@@ -396,31 +384,70 @@ class Executor:
                                cfg.stop_policy, recovery, cfg.log_path,
                                np.array(commands) if commands else None)
 
-    def _pwm_limits(self) -> dict[int, int]:
-        """Each servo's PWM Limit (the Goal PWM the RAM settings gave it): the LIMP ramp's start."""
-        bus, out = self.group.bus, {}
-        for servo in self.group.map.servos:
-            reg = servo.table["pwm_limit"]
-            try:
-                out[servo.id] = bus.read_value(servo.id, reg)
-            except CommunicationError:  # quarantined or silent now: the table's default
-                out[servo.id] = int(servo.table.defaults.get("pwm_limit", 0))
-        return out
+    def _armed_watchdog_s(self) -> float | None:
+        """The Bus Watchdog timeout the servos have armed [s] (the shortest), None if none is.
 
-    def _stop(self, fb: Feedback, faults: list[Fault], pwm_limits: dict[int, int],
-              hold_rad: FloatArray | None = None) -> RecoveryReport | None:
-        """Controlled stop by policy; never a jump: the targets are the present positions, or
-        ``hold_rad`` (the final command, within one step of them) at a normal end, where goal =
-        present would let a loaded joint sag by its position loop's steady-state error."""
+        Read from the servos, not configured: with it the rate must feed the watchdog at least
+        twice per timeout, and a host stall longer than it is a DEADLINE fault.
+
+        Raises:
+            SafetyError: a watchdog has tripped (the servo refuses goals), or the rate is too low.
+        """
+        units = self.group.read_each("bus_watchdog")
+        tripped = sorted(sid for sid, u in units.items() if u < 0)
+        if tripped:
+            raise SafetyError(f"the Bus Watchdog of servo(s) {tripped} has tripped: they refuse goal positions",
+                              hint="engage the servos again (robot-rise servos torque on, or execute does it)")
+        armed = [u for u in units.values() if u > 0]
+        if not armed:
+            return None
+        timeout_s = min(armed) * WATCHDOG_UNIT_S
+        if 2.0 / self.config.rate_hz > timeout_s:
+            raise SafetyError(f"rate {self.config.rate_hz:g} Hz feeds the {timeout_s * 1e3:.0f} ms Bus Watchdog "
+                              f"less than twice per timeout; the servos would stop themselves",
+                              hint=f"use a rate of at least {math.ceil(2.0 / timeout_s):.0f} Hz")
+        return timeout_s
+
+    def _pwm_limits(self) -> dict[int, int]:
+        """Each servo's PWM Limit (the Goal PWM the RAM settings gave it): the LIMP ramp's start.
+        A servo that does not answer now gets its model's default."""
+        read = self.group.read_each("pwm_limit")
+        return {sp.id: read.get(sp.id, int(sp.table.defaults.get("pwm_limit", 0))) for sp in self.group.map.servos}
+
+    def _stop(self, fb: Feedback, faults: list[Fault], pwm_limits: dict[int, int], watchdog_s: float | None,
+              hold_rad: FloatArray | None = None) -> tuple[RecoveryReport | None, list[str]]:
+        """Controlled stop by policy; never a jump: the targets are the present positions, or at a
+        normal end ``hold_rad``, the final command (the goal the servos already track: goal =
+        present would let a loaded joint sag by its position loop's steady-state error).
+
+        Every step is attempted even if one fails (a failed write is reported, the next step
+        still runs; torque off always closes a LIMP stop), and a Ctrl-C during the stop does not
+        cut it short. Returns the recovery report and what failed.
+        """
         group, cfg = self.group, self.config
         clock = group.bus.clock
         dt = 1.0 / cfg.rate_hz
-        # a tripped Bus Watchdog refuses goal and PWM writes: clear it first (re-armed, so the
-        # servos still stop themselves if the host dies during a LIMP ramp)
-        if cfg.watchdog_s is not None:
-            arm_watchdog(group, cfg.watchdog_s)
+        problems: list[str] = []
+
+        def step(what: str, action: Callable[[], object]) -> None:
+            for _ in range(2):  # a second Ctrl-C must not cut the stop short: the step is retried
+                try:
+                    action()
+                    return
+                except CommunicationError as e:
+                    _log.error("stop: %s failed: %s", what, e)
+                    problems.append(f"stop: {what} failed: {e}")
+                    return
+                except KeyboardInterrupt:
+                    _log.warning("stop in progress (%s): Ctrl-C ignored until the robot is stopped", what)
+
+        limp = cfg.stop_policy is StopPolicy.LIMP
+        # a tripped Bus Watchdog refuses goal and PWM writes: clear it first; a LIMP ramp keeps it
+        # armed, so the servos still stop themselves if the host dies during the ramp
+        if limp and watchdog_s is not None:
+            step("re-arming the Bus Watchdog", lambda: arm_watchdog(group, watchdog_s))
         else:
-            disarm_watchdog(group)
+            step("clearing the Bus Watchdog", lambda: disarm_watchdog(group))
         try:
             now_fb = group.read_feedback()
         except Exception:  # noqa: BLE001 - stopping must go on with what we have
@@ -428,30 +455,29 @@ class Executor:
         hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad) if hold_rad is None else hold_rad
         ok = np.isfinite(hold)
         skip = [sid for sid, good in zip(group.ids, ok) if not good]
-        group.write_goals(np.where(ok, hold, 0.0), skip=skip)
-        recovery = None
-        if cfg.stop_policy is StopPolicy.LIMP:
-            n = max(1, int(math.ceil(cfg.limp_s / dt)))
-            for fraction in np.linspace(1.0, 0.0, n + 1)[1:]:  # each servo from its own PWM Limit
-                try:
-                    group.bus.sync_write(GOAL_PWM, 2, {sid: int(round(lim * fraction)).to_bytes(2, "little")
-                                                       for sid, lim in pwm_limits.items()
-                                                       if sid not in group.quarantined})
-                    clock.sleep(dt)
-                except KeyboardInterrupt:  # a second Ctrl-C must not cut the slow limp short
-                    _log.warning("stop in progress: finishing the limp ramp (%.1f s)", cfg.limp_s)
-            group.torque(False)
-            disarm_watchdog(group)
-            return None
+        step("holding the present posture", lambda: group.write_goals(np.where(ok, hold, 0.0), skip=skip))
+        if limp:
+            ids = list(pwm_limits)
+            try:
+                for row in limp_pwm_ramp(np.array([pwm_limits[sid] for sid in ids]), cfg.limp_s, dt):
+                    step("the Goal PWM ramp", lambda row=row: group.write_each(
+                        GOAL_PWM, GOAL_PWM_SIZE, dict(zip(ids, row)), quarantined_too=True))
+                    step("the Goal PWM ramp", lambda: clock.sleep(dt))
+            finally:
+                step("torque off", lambda: group.torque(False, quarantined_too=True))
+                step("disarming the Bus Watchdog", lambda: disarm_watchdog(group))
+            return None, problems
         shut = [sid for sid, bits in zip(group.ids, now_fb.hardware_error) if bits]
-        # streaming is over and every servo holds its present position: the Bus Watchdog has
-        # nothing left to guard, and recovery (reboot + boot wait of one servo) would starve the
-        # others' watchdogs and trip them
-        disarm_watchdog(group)
+        # the Bus Watchdog was disarmed above: streaming is over and every servo holds; recovery
+        # (reboot + boot wait of one servo) would starve the others' watchdogs and trip them
+        recovery = None
         if faults and shut and cfg.recovery_attempts > 0:
             _log.warning("attempting recovery of servo(s) %s", shut)
-            recovery = recover(group, shut, attempts=cfg.recovery_attempts)
-        return recovery
+            try:
+                recovery = recover(group, shut, attempts=cfg.recovery_attempts)
+            except CommunicationError as e:
+                problems.append(f"stop: recovery failed: {e}")
+        return recovery, problems
 
 
 class _CycleLog:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +57,7 @@ _GOAL_BLOCK = np.dtype([("id", "u1"), ("ticks", "<i4")])  # one servo's sync-wri
 GOAL_POSITION = _LAYOUT["goal_position"].address
 TORQUE_ENABLE = _LAYOUT["torque_enable"].address
 GOAL_PWM = _LAYOUT["goal_pwm"].address
+GOAL_PWM_SIZE = _LAYOUT["goal_pwm"].size
 BUS_WATCHDOG = _LAYOUT["bus_watchdog"].address
 # without the indirect block: one contiguous read from Present Current through address 147 (one
 # byte past Present Temperature, read since the start, not decoded), then Hardware Error Status
@@ -66,7 +67,7 @@ _SPAN_REGISTERS = tuple(_LAYOUT[name] for name in ("present_position", "present_
                                                    "present_temperature", "present_input_voltage"))
 _HARDWARE_ERROR = _LAYOUT["hardware_error_status"]
 _USED_REGISTERS = tuple(_LAYOUT[name] for name in (*_FEEDBACK_REGISTERS, "goal_position", "torque_enable",
-                                                   "goal_pwm", "bus_watchdog"))
+                                                   "goal_pwm", "bus_watchdog", "pwm_limit"))
 
 
 def _check_layout(table: ControlTable) -> None:
@@ -199,16 +200,31 @@ class ServoGroup:
         self.bus.sync_write(GOAL_POSITION, _LAYOUT["goal_position"].size, data, defer=defer)
         return ticks
 
-    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None) -> None:
+    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None, *,
+                  quarantined_too: bool = False) -> None:
         """Sync-write the same raw ``value`` to a register span on ``ids`` (``None``: every
-        servo; an empty sequence: none, nothing is sent)."""
-        data = (int(value) & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
-        targets = self.ids if ids is None else ids
-        self.bus.sync_write(address, size, {sid: data for sid in targets if sid not in self.quarantined})
+        servo; an empty sequence: none, nothing is sent). Quarantined servos are left out
+        unless ``quarantined_too`` (a stop: one whose replies are lost may still listen)."""
+        self.write_each(address, size, {sid: value for sid in (self.ids if ids is None else ids)},
+                        quarantined_too=quarantined_too)
 
-    def torque(self, on: bool, ids: Sequence[int] | None = None) -> None:
+    def write_each(self, address: int, size: int, values: Mapping[int, int], *,
+                   quarantined_too: bool = False) -> None:
+        """Sync-write each servo's own raw value (``values``: ID -> value) to a register span."""
+        mask = (1 << (8 * size)) - 1
+        self.bus.sync_write(address, size, {sid: (int(v) & mask).to_bytes(size, "little") for sid, v in values.items()
+                                            if quarantined_too or sid not in self.quarantined})
+
+    def torque(self, on: bool, ids: Sequence[int] | None = None, *, quarantined_too: bool = False) -> None:
         """Torque Enable on all (``ids`` None) or on ``ids`` only (empty: none) by sync write."""
-        self.write_all(TORQUE_ENABLE, _LAYOUT["torque_enable"].size, int(on), ids)
+        self.write_all(TORQUE_ENABLE, _LAYOUT["torque_enable"].size, int(on), ids, quarantined_too=quarantined_too)
+
+    def read_each(self, name: str) -> dict[int, int]:
+        """One plain sync read of register ``name`` from every active servo: ID -> raw value
+        (servos that did not answer are absent)."""
+        reg = _LAYOUT[name]
+        r = self.bus.sync_read(reg.address, reg.size, [sid for sid in self.ids if sid not in self.quarantined])
+        return {sid: reg.decode(d) for sid, d in r.data.items()}
 
     # ---- reads ----------------------------------------------------------------------------
     def _raw_read(self, ids: list[int]) -> GroupRead:

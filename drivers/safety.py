@@ -330,11 +330,15 @@ def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray, q_pres
     return faults
 
 
-def limp_pwm_ramp(pwm_limit: int, duration_s: float, dt_s: float) -> NDArray[np.int64]:
+def limp_pwm_ramp(pwm_limit: int | NDArray[np.int64], duration_s: float, dt_s: float) -> NDArray[np.int64]:
     """Goal PWM values for a slow limp: linear from ``pwm_limit`` to 0 over ``duration_s`` [s].
 
+    Args:
+        pwm_limit: one servo's PWM Limit, or each servo's, shape (n,).
+
     Returns:
-        Integer PWM per cycle, shape (K,), last value 0.
+        Integer PWM per cycle, shape (K,) (or (K, n)), last row 0.
     """
     n = max(1, int(math.ceil(duration_s / dt_s)))
-    return np.rint(np.linspace(pwm_limit, 0, n + 1)[1:]).astype(np.int64)
+    fraction = np.linspace(1.0, 0.0, n + 1)[1:]
+    return np.rint(np.multiply.outer(fraction, pwm_limit)).astype(np.int64)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.control_table import BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.control_table import BAUD_INDEX_BY_RATE, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.errors import ControlTableError, ServoMapError
 
 __all__ = [
@@ -29,7 +29,7 @@ __all__ = [
 
 SERVO_MAP_FORMAT = "robot-rise/servos@1"
 _DEFAULT_LIMIT_RAD = 3.14  # [rad] default joint limit: just inside one turn of position mode
-_SUPPORTED_BAUDS = tuple(BAUD_RATE_BY_INDEX.values())
+_SUPPORTED_BAUDS = tuple(BAUD_INDEX_BY_RATE)
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class BusSpec:
     @property
     def baud_index(self) -> int:
         """Value of the Baud Rate register for ``baud_rate``."""
-        return next(i for i, rate in BAUD_RATE_BY_INDEX.items() if rate == self.baud_rate)
+        return BAUD_INDEX_BY_RATE[self.baud_rate]
 
     @property
     def return_delay_units(self) -> int:
@@ -107,6 +107,11 @@ class ServoSpec:
     @property
     def table(self) -> ControlTable:
         return control_table(self.model)
+
+    @property
+    def label(self) -> str:
+        """How messages name this servo: ``joint (id N)``."""
+        return f"{self.joint} (id {self.id})"
 
     def to_ticks(self, angle_rad: float) -> int:
         """Goal position ticks for joint angle ``angle_rad`` [rad]."""

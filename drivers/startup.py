@@ -217,7 +217,7 @@ def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:
         missing = [sid for sid, ok in zip(group.ids, fb.valid) if not ok]
         raise CommunicationError(f"no present position from servo(s) {missing}; not engaging")
     require_inside_limits(fb.position_rad, group.map.lower_rad, group.map.upper_rad,
-                          [f"{sp.joint} (id {sp.id})" for sp in group.map.servos], "not engaging")
+                          [sp.label for sp in group.map.servos], "not engaging")
     smap = group.map
     ticks = group.write_goals(np.clip(fb.position_rad, smap.lower_rad, smap.upper_rad))
     _check_goals_taken(group, ticks)
@@ -239,7 +239,7 @@ def _check_goals_taken(group: ServoGroup, ticks: NDArray[np.int64]) -> None:
     for spec, written in zip(group.map.servos, ticks):
         got = reg.decode(r.data[spec.id])
         if abs(got - int(written)) > GOAL_READBACK_TOLERANCE_TICKS:
-            wrong.append(f"{spec.joint} (id {spec.id}): goal {got} ticks read back, {int(written)} written")
+            wrong.append(f"{spec.label}: goal {got} ticks read back, {int(written)} written")
     if wrong:
         raise SafetyError("goal = present did not take, not engaging: " + "; ".join(wrong),
                           hint="the servo refused the goal: run preflight (it writes the position limits "

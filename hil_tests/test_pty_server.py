@@ -145,13 +145,14 @@ smap = load_servo_map(sys.argv[1])
 # generous reply margin: the emulator is a thread of the (busy) test process
 with connect(smap, sys.argv[2], rx_margin_s=0.25) as conn:
     preflight(conn.group)
-    engage(conn.group, watchdog_s=0.1)
-    q0 = conn.group.read_feedback().position_rad
     limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
-    q1 = np.clip(q0 + 0.3, limits.lower_rad, limits.upper_rad)
-    print("STREAMING", flush=True)
-    Executor(conn.group, limits, ExecutorConfig(rate_hz=50.0)).run(
-        smap.joint_names, np.array([0.0, 20.0]), np.vstack([q0, q1]))
+    while True:  # until killed: a host stall longer than the watchdog ends a run (DEADLINE); stream again
+        engage(conn.group, watchdog_s=0.1)
+        q0 = conn.group.read_feedback().position_rad
+        q1 = np.clip(q0 + 0.3, limits.lower_rad, limits.upper_rad)
+        print("STREAMING", flush=True)
+        Executor(conn.group, limits, ExecutorConfig(rate_hz=50.0)).run(
+            smap.joint_names, np.array([0.0, 20.0]), np.vstack([q0, q1]))
 """
 
 

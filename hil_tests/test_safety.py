@@ -154,3 +154,9 @@ def test_that_a_fault_is_found_exactly_when_some_threshold_is_crossed_on_random_
                        or np.any(v & (fb["temperature_c"] > 70))
                        or np.any(v & ((fb["voltage_v"] < 10) | (fb["voltage_v"] > 14.8))))
         assert bool(evaluate_feedback(lim, **fb)) == crossed
+
+
+def test_that_the_limp_ramp_of_several_servos_starts_at_each_limit() -> None:
+    ramp = limp_pwm_ramp(np.array([885, 400]), 0.5, 0.01)
+    assert ramp.shape == (50, 2) and np.all(ramp[-1] == 0) and np.all(np.diff(ramp, axis=0) <= 0)
+    assert abs(ramp[0, 0] - 885 * 49 / 50) <= 1 and abs(ramp[0, 1] - 400 * 49 / 50) <= 1

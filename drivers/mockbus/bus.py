@@ -17,7 +17,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from drivers.clock import Clock, MonotonicClock
-from drivers.control_table import BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.mockbus.faults import FaultInjector
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion
 from drivers.mockbus.servo import EmulatedServo
@@ -72,9 +72,8 @@ class MockBus:
                  return_delay_units: int = 0, initial_position_ticks: Mapping[int, int] | None = None,
                  firmware_version: int = 46, boot_time_s: float = 0.05,
                  plant_period_s: float = _PLANT_PERIOD_S) -> None:
-        index = {v: k for k, v in BAUD_BY_INDEX.items()}
-        if baud_rate not in index:
-            raise ValueError(f"baud_rate {baud_rate} not in {sorted(index)}")
+        if baud_rate not in BAUD_INDEX_BY_RATE:
+            raise ValueError(f"baud_rate {baud_rate} not in {sorted(BAUD_INDEX_BY_RATE)}")
         self.baud_rate = baud_rate
         self.clock: Clock = clock or MonotonicClock()
         self.faults = faults or FaultInjector()
@@ -86,7 +85,7 @@ class MockBus:
         for sid, model in servos.items():
             table: ControlTable = control_table(model)
             self.servos[sid] = EmulatedServo(
-                sid, table, baud_index=index[baud_rate], return_delay_units=return_delay_units,
+                sid, table, baud_index=BAUD_INDEX_BY_RATE[baud_rate], return_delay_units=return_delay_units,
                 initial_position_ticks=init.get(sid, CENTER_TICKS), firmware_version=firmware_version)
         if plant is None:
             plant = KinematicPlant(initial_rad={

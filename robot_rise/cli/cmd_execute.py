@@ -137,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
                             stop_policy=StopPolicy(args.stop),
                             log_path=Path(args.log) if args.log else None,
                             realtime_priority=args.rt_priority,
-                            watchdog_s=WATCHDOG_S, cpu_latency_us=None if args.cpu_idle else 0)
+                            cpu_latency_us=None if args.cpu_idle else 0)
     with connect(smap, port, baud_rate=args.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
