@@ -100,8 +100,6 @@ LEAN_SMOOTH_S = 0.15  # the lean error is smoothed with a Gaussian of this width
 LEAN_ITERATIONS = 4  # filter iterations that may adapt the lean (on top of max_iterations)
 LEAN_MIN_AXIS = 0.7  # a shoulder pitch joint's axis is at least this much along the body's y axis
 
-# libm's atan2 element-wise: numpy's own arctan2 differs from it in the last bit for some inputs
-
 
 @dataclass(frozen=True)
 class FilterSettings:
@@ -663,7 +661,8 @@ def prove(
         and no self-collision occurred.
     """
     rec, verdict, report, _ = _prove(
-        robot, trajectory, scene=scene, settings=settings, player=player or Player(robot, scene), start=start, saturation_rad=_saturation_rad(robot)
+        robot, trajectory, scene=scene, settings=settings, player=player or Player(robot, scene), start=start,
+        saturation_rad=_saturation_rad(robot), want_violations=False,
     )
     return rec, verdict, report
 
@@ -682,8 +681,10 @@ def _prove(
     player: Player,
     start: Posture | None,
     saturation_rad: float,
+    want_violations: bool = True,
 ) -> tuple[Recording, StandVerdict, dict[str, Any], list[Violation]]:
-    """:func:`prove`, also returning the recording's violations (:func:`find_violations`, all of them)."""
+    """:func:`prove`, also returning the recording's violations (:func:`find_violations`, all of
+    them; found only for a fall's diagnosis unless ``want_violations``: the filter reshapes them)."""
     rec = player.play(trajectory, start, hold_s=settings.hold_s)
     verdict = judge(rec)
     limit = 1.0 - settings.envelope_margin
@@ -697,7 +698,8 @@ def _prove(
     proven = bool(verdict.standing and within and not self_collision)
     problems = []
     diagnosis = ""
-    violations = find_violations(rec, settings, saturation_rad=saturation_rad)
+    violations = (find_violations(rec, settings, saturation_rad=saturation_rad)
+                  if want_violations or not verdict.standing else [])
     if not verdict.standing:
         diagnosis = describe_fall(rec, trajectory, violations)
         problems.append(f"not standing: {verdict.reason} ({diagnosis})")

@@ -41,7 +41,6 @@ from robot_rise.model import Robot
 from robot_rise.placement import align_to_start
 from robot_rise.fileio import write_text_atomic
 from robot_rise.paths import configs_dir
-from robot_rise.rise import select_goal
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict, quat_multiply
 from robot_rise.validity import ValidityChecker
 
@@ -221,6 +220,8 @@ def library_digest(robot: Robot) -> str:
 
 def library_connecting_posture(ctx: Any, start: Posture) -> tuple[Posture, str]:
     """The connecting posture ``rise`` plans to first (``problem.select_goal``): (goal, ``"library motion@frame (candidate r)"``)."""
+    from robot_rise.rise import select_goal  # a benchmark of rise's problems: the planner itself never imports rise
+
     sel = select_goal(ctx, start)
     return sel.goal, f"library {sel.source}"
 
