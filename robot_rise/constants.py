@@ -93,3 +93,41 @@ ROOT_TRANSLATION_SCALE_M = 0.1
 # Ours: the energy planner's output path is verified so that no robot point moves more than this
 # between two checked postures (the other planner's EDGE_RESOLUTION_M reasoning, 004 has none).
 ENERGY_VERIFY_RESOLUTION_M = 0.005
+# The energy's external term is added unweighted: E = E_int + E_ext (004 section 4.1, eq. 1-2).
+ENERGY_EXTERNAL_WEIGHT = 1.0
+# Ours: a hard cap on the iterations of Algorithm 1; the budget and the local-minimum detector of
+# 004 section 8 are what normally end a run whose two ends do not meet.
+ENERGY_MAX_ITERATIONS = 4000
+# Ours: the fall-off exponents d tried in turn after a failed leg (local minima depend on d,
+# 004 section 8; the paper's d lies between 2 and 5, sections 7.2, 8).
+FALLOFF_RETRY_SCHEDULE = (3, 2, 5)
+# Ours: robot points closer than this to a ground plane count as touching it (10 mm: the capsules
+# sit up to a few mm inside the checker's torso and foot geoms); when every plain
+# attempt of an iteration is rejected, the attempts are repeated with those contacts as
+# positional constraints (Algorithm 2), so that the internal term cannot push a resting foot or
+# hand through the floor (a lying robot rests on the ground: paper 004 section 8's "contact
+# invariant" setting).
+GROUND_CONTACT_ZONE_M = 0.01
+# Second stage (paper 004 section 6.2, eq. 14, 19-20). The paper gives w_lap = 0.02, w_am = 0.2 for
+# its spatial Laplacian and angular momentum and "the maximum iteration is 30" (section 7.2); our
+# terms are on the trajectory in the scaled tangent space (energy.second_stage), so the weights
+# are ours.
+SECOND_STAGE_ITERATIONS = 30  # paper 004 section 7.2: "the maximum iteration is 30"
+# Ours: frames of the projected motion at most this far apart (scaled tangent norm). 0.05 before
+# issue 7's second round; 0.025 measured smoother (crossed-limb J x D^5 median ratio 0.55).
+SECOND_STAGE_FRAME_SPACING_RAD = 0.025
+SECOND_STAGE_W_LAP = 10.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
+# Weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M. Off, as in
+# the paper's own solver ("for the sake of simplicity, we omit the linear momentum", eq. 20): at 1.0
+# it changed no crossed-limb result by more than 1 % and cost a quarter of the planning time.
+SECOND_STAGE_W_LM = 0.0
+# Ours: a frame whose step makes it or a neighbouring segment illegal halves it this often, then
+# keeps its posture.
+SECOND_STAGE_HALVINGS = 3
+# Ours: the second stage stops when no frame moves more than this (scaled tangent norm) [rad]; the
+# paper runs its solver "until constraints are satisfied within a threshold" (section 6.2), no value.
+SECOND_STAGE_TOLERANCE_RAD = 1e-4
+# Ours: the second stage's motion is handed on with frames at most this far apart (scaled tangent
+# norm; 1/5 of the frame spacing): every step is then under the timing's 0.01 rad densification
+# step, so the timing sees the curve, not the frames' polyline (energy.dense_output).
+OUTPUT_SPACING_RAD = 0.005

@@ -640,3 +640,24 @@ def test_that_the_default_budget_is_not_reached_on_the_crossed_limb_problems(set
     result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))
     assert result.solved and result.stats["stopped_on_budget"] == []
     assert result.stats["legs"][-1]["second_stage"]["stopped_on_budget"] is False
+
+
+def test_that_the_planner_numbers_live_in_robot_rise_constants():
+    import ast
+    from pathlib import Path
+
+    from robot_rise import constants as c
+
+    sp = energy_module.SecondStageParams()
+    assert (sp.iterations, sp.frame_spacing_rad, sp.w_lap, sp.w_lm, sp.halvings, sp.tolerance_rad) == (
+        c.SECOND_STAGE_ITERATIONS, c.SECOND_STAGE_FRAME_SPACING_RAD, c.SECOND_STAGE_W_LAP, c.SECOND_STAGE_W_LM,
+        c.SECOND_STAGE_HALVINGS, c.SECOND_STAGE_TOLERANCE_RAD)
+    ep = EnergyParams()
+    assert (ep.external_weight, ep.max_iterations) == (c.ENERGY_EXTERNAL_WEIGHT, c.ENERGY_MAX_ITERATIONS)
+    assert energy_module.FALLOFF_RETRY_SCHEDULE == c.FALLOFF_RETRY_SCHEDULE
+    assert energy_module.GROUND_CONTACT_ZONE_M == c.GROUND_CONTACT_ZONE_M
+    # no module-level number of its own in energy.py (one config place, with the paper beside it)
+    tree = ast.parse(Path(energy_module.__file__).read_text())
+    own = [t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
+           if isinstance(t, ast.Name) and isinstance(node.value, (ast.Constant, ast.Tuple)) and t.id.isupper() and t.id != "__all__"]
+    assert own == []

@@ -65,14 +65,25 @@ from robot_rise.constants import (
     ENERGY_CONSTRAINT_OMEGA,
     ENERGY_DESCENT_BETA,
     ENERGY_EXTERNAL_EXPONENT,
+    ENERGY_EXTERNAL_WEIGHT,
     ENERGY_FALLOFF_D,
     ENERGY_LOCAL_MINIMUM_PATIENCE,
+    ENERGY_MAX_ITERATIONS,
     ENERGY_SOFTENING_M,
     ENERGY_STEP_RAD,
     ENERGY_VERIFY_RESOLUTION_M,
     ENERGY_WINDOW_FRACTION,
+    FALLOFF_RETRY_SCHEDULE,
     GLI_SAFE_ZONE_THRESHOLD,
+    GROUND_CONTACT_ZONE_M,
+    OUTPUT_SPACING_RAD,
     ROOT_TRANSLATION_SCALE_M,
+    SECOND_STAGE_FRAME_SPACING_RAD,
+    SECOND_STAGE_HALVINGS,
+    SECOND_STAGE_ITERATIONS,
+    SECOND_STAGE_TOLERANCE_RAD,
+    SECOND_STAGE_W_LAP,
+    SECOND_STAGE_W_LM,
 )
 from robot_rise.planning.capsules import (
     CapsuleSet,
@@ -117,37 +128,10 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-# Ours: robot points closer than this to a ground plane count as touching it (10 mm: the capsules
-# sit up to a few mm inside the checker's torso and foot geoms); when every plain
-# attempt of an iteration is rejected, the attempts are repeated with those contacts as
-# positional constraints (Algorithm 2), so that the internal term cannot push a resting foot or
-# hand through the floor (a lying robot rests on the ground: paper 004 section 8's "contact
-# invariant" setting).
-GROUND_CONTACT_ZONE_M = 0.01
-
-
-# Second stage (paper 004 section 6.2). The paper gives w_lap = 0.02, w_am = 0.2 for its spatial
-# Laplacian and angular momentum and "the maximum iteration is 30" (section 7.2); our terms are
-# on the trajectory in the scaled tangent space (see ``second_stage``), so the weights are ours.
-SECOND_STAGE_ITERATIONS = 30  # paper 004 section 7.2: "the maximum iteration is 30"
-# Ours: frames of the projected motion at most this far apart (scaled tangent norm). 0.05 before
-# issue 7's second round; 0.025 measured smoother (crossed-limb J x D^5 median ratio 0.55).
-SECOND_STAGE_FRAME_SPACING_RAD = 0.025
-SECOND_STAGE_W_LAP = 10.0  # ours: weight of the trajectory Laplacian against M = I (eq. 19)
-# Weight of the linear-momentum term, eq. (18), CoM in units of ROOT_TRANSLATION_SCALE_M. Off, as in
-# the paper's own solver ("for the sake of simplicity, we omit the linear momentum", eq. 20): at 1.0
-# it changed no crossed-limb result by more than 1 % and cost a quarter of the planning time.
-SECOND_STAGE_W_LM = 0.0
-# Ours: the second stage's motion is handed on with frames at most this far apart (scaled tangent
-# norm; 1/5 of the frame spacing): every step is then under the timing's 0.01 rad densification
-# step, so the timing sees the curve, not the frames' polyline (``dense_output``).
-OUTPUT_SPACING_RAD = 0.005
-SECOND_STAGE_HALVINGS = 3  # ours: a frame whose step makes it or a neighbouring segment illegal halves it this often, then keeps its posture
-
 
 @dataclass(frozen=True)
 class SecondStageParams:
-    """Parameters of the section 6.2 projection (``second_stage``).
+    """Parameters of the section 6.2 projection (``second_stage``; defaults in robot_rise/constants.py).
 
     Attributes:
         iterations: maximum iterations (paper: 30).
@@ -164,7 +148,7 @@ class SecondStageParams:
     w_lap: float = SECOND_STAGE_W_LAP
     w_lm: float = SECOND_STAGE_W_LM
     halvings: int = SECOND_STAGE_HALVINGS
-    tolerance_rad: float = 1e-4
+    tolerance_rad: float = SECOND_STAGE_TOLERANCE_RAD
 
     def __post_init__(self) -> None:
         if self.frame_spacing_rad <= 0 or self.w_lap < 0 or self.w_lm < 0 or self.iterations < 0 or self.halvings < 0:
@@ -211,7 +195,7 @@ class EnergyParams:
     falloff_d: int = ENERGY_FALLOFF_D
     external_exponent: int = ENERGY_EXTERNAL_EXPONENT
     softening_m: float = ENERGY_SOFTENING_M
-    external_weight: float = 1.0
+    external_weight: float = ENERGY_EXTERNAL_WEIGHT
     step_rad: float = ENERGY_STEP_RAD
     descent_beta: float = ENERGY_DESCENT_BETA
     gli_threshold: float = GLI_SAFE_ZONE_THRESHOLD
@@ -220,7 +204,7 @@ class EnergyParams:
     window_fraction: float = ENERGY_WINDOW_FRACTION
     gamma: float = ENERGY_CONSTRAINT_GAMMA
     omega: float = ENERGY_CONSTRAINT_OMEGA
-    max_iterations: int = 4000
+    max_iterations: int = ENERGY_MAX_ITERATIONS
     verify_resolution_m: float = ENERGY_VERIFY_RESOLUTION_M
     root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M
     move_root: bool = True
@@ -1367,9 +1351,6 @@ def _refine_leg(
                 stopped.append("dense output")
     leg_stats["stopped_on_budget"] = stopped
     return q_leg
-
-
-FALLOFF_RETRY_SCHEDULE = (3, 2, 5)  # ours: d values tried in turn after a failure (paper: d in 2..5)
 
 
 def plan_energy(
