@@ -46,7 +46,12 @@ metric, ``path_length``), minimum self and ground clearance of the smoothed path
 squared jerk of the timed joint rows, the same jerk at a common duration (``common_duration_jerk``),
 the dimensionless jerk, the root's travel and rotation along the timed path, and the timed duration.
 
-Run (prints Markdown tables; ``--out`` keeps every run as JSON, ``--merge`` tables saved runs)::
+Files: ``--out`` keeps every run as JSON (``"format": "robot-rise/bench-energy@1"``), ``--merge``
+tables saved runs (and refuses, in one line with a hint, a file of another format or a run with
+missing or unknown fields); ``--lying-cache`` freezes the sampled lying60 problems
+(``"robot-rise/lying-problems@1"``; a cache from before that string is read with a warning).
+
+Run (prints Markdown tables)::
 
     .venv/bin/python -m robot_rise.planning.bench_energy --sets crossed --n 5 --budget 20 --out out/bench_energy_crossed.json
     .venv/bin/python -m robot_rise.planning.bench_energy --sets lying60 --budget 10 --lying-cache out/lying60_seed1.json --out out/bench_energy_lying60.json
@@ -60,6 +65,7 @@ import dataclasses
 import json
 import logging
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -67,6 +73,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_rise.errors import FormatError, RobotRiseError
 from robot_rise.model import Robot, load_robot
 from robot_rise.planning.energy import EnergyParams, EnergyPlanner, SecondStageParams, segment_is_valid
 from robot_rise.planning.problem import PlanningProblem, PlanResult
@@ -75,6 +82,8 @@ from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
+    "BENCH_ENERGY_FORMAT",
+    "LYING_PROBLEMS_FORMAT",
     "CrossedProblem",
     "PROBLEM_KINDS",
     "PROBLEM_SETS",
@@ -98,6 +107,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+BENCH_ENERGY_FORMAT = "robot-rise/bench-energy@1"  # the --out results file
+LYING_PROBLEMS_FORMAT = "robot-rise/lying-problems@1"  # the --lying-cache problem file
 PROBLEM_KINDS = ("crossed_arms", "crossed_legs", "arm_under_back")
 JITTER_RAD = 0.05  # ours: per-joint jitter of the variants (same on both ends)
 GROUND_GAP_M = 0.0005  # lying postures rest this far above the ground
@@ -270,18 +281,28 @@ def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind:
 
     The file is reused as long as it was made with the same seed and counts, whatever the library
     is now (its digest and the goals' library frames are stored in it); delete it to resample.
+    A file from before the ``format`` string (``LYING_PROBLEMS_FORMAT``) is read with a warning:
+    its layout is the same, and sampling again takes minutes.
+
+    Raises:
+        FormatError: the file is not JSON, has another ``format`` or lacks a field.
     """
     from robot_rise.posture import posture_from_dict, posture_to_dict
 
     key = {"seed": seed, "per_kind": per_kind or LYING60_PER_KIND}
     if cache and Path(cache).exists():
-        data = json.loads(Path(cache).read_text())
+        data = _read_json(cache, LYING_PROBLEMS_FORMAT, missing_ok=True, fields=("key", "problems"))
         if data.get("key") == key:
             log.warning("lying60 problems from %s (library digest %s; now %s)", cache, data.get("library_digest"), library_digest(robot))
-            return [
-                CrossedProblem(d["kind"], d["variant"], posture_from_dict(d["start"]), posture_from_dict(d["goal"]), d.get("goal_rank", 0), d.get("goal_frame", ""))
-                for d in data["problems"]
-            ]
+            out = []
+            for k, d in enumerate(data["problems"]):
+                lacking = [f for f in ("kind", "variant", "start", "goal") if not isinstance(d, dict) or f not in d]
+                if lacking:
+                    raise FormatError(f"{cache}: problem {k} lacks {', '.join(lacking)}", hint="delete the file to sample the problems again")
+                where = f"{cache}: problem {k}"
+                out.append(CrossedProblem(d["kind"], d["variant"], posture_from_dict(d["start"], where=f"{where} start"),
+                                          posture_from_dict(d["goal"], where=f"{where} goal"), d.get("goal_rank", 0), d.get("goal_frame", "")))
+            return out
         log.warning("%s holds other lying problems (%s); sampling again", cache, data.get("key"))
     digest = library_digest(robot)
     out = lying60_problems(robot, checker, seed=seed, per_kind=per_kind)
@@ -292,8 +313,35 @@ def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind:
              "start": posture_to_dict(p.start), "goal": posture_to_dict(p.goal)}
             for p in out
         ]
-        Path(cache).write_text(json.dumps({"key": key, "library_digest": digest, "problems": rows}))
+        Path(cache).write_text(json.dumps({"format": LYING_PROBLEMS_FORMAT, "key": key, "library_digest": digest, "problems": rows}))
     return out
+
+
+def _read_json(path: str, expected: str, *, missing_ok: bool = False, fields: tuple[str, ...] = ()) -> dict:
+    """The JSON object of ``path``, checked to be of format ``expected`` and to have ``fields``.
+
+    ``missing_ok``: a file without any ``format`` (written before this version string) is read
+    with a warning instead of refused.
+
+    Raises:
+        FormatError: not a JSON object, another (or, unless ``missing_ok``, no) ``format``, or a field missing.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as e:
+        raise FormatError(f"{path}: not a JSON file ({e})", hint=f"expected a {expected!r} file") from e
+    if not isinstance(data, dict):
+        raise FormatError(f"{path}: not a JSON object", hint=f"expected a {expected!r} file")
+    got = data.get("format")
+    if got is None and missing_ok:
+        log.warning("%s has no format string; read as %s (its layout)", path, expected)
+    elif got != expected:
+        raise FormatError(f"{path}: format is {got!r}, expected {expected!r}",
+                          hint="pass a file this benchmark wrote (re-run it with --out), or add the format field if the file is from before it")
+    lacking = [f for f in fields if f not in data]
+    if lacking:
+        raise FormatError(f"{path}: no {', '.join(lacking)} field in this {expected!r} file", hint="pass a file this benchmark wrote")
+    return data
 
 
 # --- measurement ----------------------------------------------------------------------------------
@@ -570,9 +618,26 @@ def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
 
 
 def _load_rows(paths: list[str]) -> list[BenchRow]:
+    """The runs of saved ``--out`` files (``BENCH_ENERGY_FORMAT``).
+
+    Raises:
+        FormatError: a file of another format, or a run with missing or unknown fields.
+    """
+    names = {f.name for f in dataclasses.fields(BenchRow)}
+    required = {f.name for f in dataclasses.fields(BenchRow) if f.default is dataclasses.MISSING}
     rows: list[BenchRow] = []
     for p in paths:
-        rows += [BenchRow(**r) for r in json.loads(Path(p).read_text())["runs"]]
+        for k, r in enumerate(_read_json(p, BENCH_ENERGY_FORMAT, fields=("runs",))["runs"]):
+            if not isinstance(r, dict):
+                raise FormatError(f"{p}: run {k} is not an object", hint="pass a file this benchmark wrote with --out")
+            missing, unknown = sorted(required - set(r)), sorted(set(r) - names)
+            if missing or unknown:
+                raise FormatError(
+                    f"{p}: run {k} " + "; ".join(x for x in (f"lacks {', '.join(missing)}" if missing else "",
+                                                             f"has unknown fields {', '.join(unknown)}" if unknown else "") if x),
+                    hint=f"a run has the fields {', '.join(sorted(names))}",
+                )
+            rows.append(BenchRow(**r))
     return rows
 
 
@@ -613,6 +678,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-v", "--verbose", action="store_true")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return _run(args)
+    except RobotRiseError as e:  # a bad input file: one line and a hint, no traceback
+        print(f"error: {e}", file=sys.stderr)
+        if e.hint:
+            print(f"hint: {e.hint}", file=sys.stderr)
+        return 2
+
+
+def _run(args: argparse.Namespace) -> int:
     if args.merge:
         _print(_load_rows(args.merge))
         return 0
@@ -624,7 +699,8 @@ def main(argv: list[str] | None = None) -> int:
             done.append(row)
         if args.out:
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.out).write_text(json.dumps({"args": vars(args), "wall_s": time.monotonic() - t0, "runs": [asdict(r) for r in done]}, indent=1))
+            Path(args.out).write_text(json.dumps({"format": BENCH_ENERGY_FORMAT, "args": vars(args), "wall_s": time.monotonic() - t0,
+                                                  "runs": [asdict(r) for r in done]}, indent=1))
 
     rows = run_benchmark(sets=tuple(args.sets), n=args.n, budget_s=args.budget, seed=args.seed, lying_seed=args.lying_seed,
                          planners=args.planners, kinds=tuple(args.kinds), progress=save,
