@@ -555,6 +555,22 @@ def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the
     r1 = planners["energy_r1"].params  # the default before issue 7's second round
     assert r1.second_stage.frame_spacing_rad == 0.05 and r1.second_stage.w_lm == 1.0
     assert not r1.straighten_limbs and not r1.dense_output
+    for name in ("energy_keys", "energy_noshortcut", "energy_oldsmooth", "energy_abc"):  # key postures, nothing after
+        k = planners[name].params
+        assert k.keyframes and k.second_stage is None and not k.straighten_limbs, name
+    for name in ("energy_s2", "energy_s2_noshortcut", "energy_s2_oldsmooth", "energy_s2_abc"):  # + the second stage alone
+        s2 = planners[name].params
+        assert s2.keyframes and s2.second_stage == energy_module.SecondStageParams() and not s2.straighten_limbs and not s2.dense_output, name
+    raw = planners["energy_raw"].params
+    assert not raw.keyframes and raw.second_stage is None and not raw.straighten_limbs
+
+    def what(name):  # what a row measures: its planner (kind and parameters) and its smoothing
+        pl = planners[name]
+        return type(pl).__name__, getattr(pl, "params", getattr(pl, "config", None)), bench_energy._smoothing(name)
+
+    rows = list(planners)
+    copies = [(a, b) for i, a in enumerate(rows) for b in rows[i + 1:] if what(a) == what(b)]
+    assert copies == []  # no row repeats another (the main rows included)
 
 
 def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_planner():

@@ -27,17 +27,31 @@ Planners, all on the same strict ``ValidityChecker`` (flat scene):
 - ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
   robot_rise/planning/ompl_adapter.py (the one bench_planning.py uses): our checker as state
   validity, our MotionValidator at EDGE_RESOLUTION_M as OMPL's motion validator;
-- ablations, only when named in ``--planners``: ``energy_raw`` (every alpha step, no key postures),
-  ``energy_s2`` (key postures, then the section 6.2 second stage, ``second_stage``), and
-  ``energy_noshortcut`` / ``energy_s2_noshortcut``: the same two through the shared B-spline and
-  timing but with the shared smoother's random shortcutting turned off
-  (``SmoothingConfig(shortcut_attempts=0)``). Those two are NOT the shared pipeline; they are
-  reported beside it to show what the shortcut does to a path that is already short and smooth;
-  ``energy_oldsmooth`` / ``energy_s2_oldsmooth`` / ``rrt_blossom_oldsmooth``: smoothed as before
-  the smoother's repair a (``SmoothingConfig(restore_waypoints=False, max_rounds=8)``), the
-  "before" of issue 7's smoother change; ``energy_r1``: the energy planner's default before issue
-  7's second round (second stage at 0.05 rad frames with the eq. 18 term, no straightening, no
-  dense output); ``energy_nostraighten`` / ``energy_nodense``: the default without one of them.
+- ablations, only when named in ``--planners``. Energy planners (``EnergyParams``):
+
+  - ``energy_raw``: every alpha step of Algorithms 1-2, nothing after them
+    (``keyframes=False, straighten_limbs=False, second_stage=None``);
+  - ``energy_keys``: the section 5.2 key postures, nothing after them
+    (``straighten_limbs=False, second_stage=None``: ``second_stage=None`` alone still
+    straightens the limbs); the default of the first round;
+  - ``energy_s2``: the key postures, then the section 6.2 second stage (``second_stage``, its
+    current parameters), without the straightening and the dense output of the second round;
+  - ``energy_r1``: the default before issue 7's second round (second stage at 0.05 rad frames
+    with the eq. 18 term, no straightening, no dense output);
+  - ``energy_nostraighten`` / ``energy_nodense``: the default without one of those two.
+
+  Smoothing ablations, each a pair ``energy_<x>`` (``energy_keys``' planner) / ``energy_s2_<x>``
+  (``energy_s2``'s), plus RRT-blossom's where named:
+
+  - ``energy_noshortcut`` / ``energy_s2_noshortcut``: through the shared B-spline and timing but
+    with the shared smoother's random shortcutting turned off (``SmoothingConfig(shortcut_attempts=0)``).
+    NOT the shared pipeline; reported beside it to show what the shortcut does to a path that is
+    already short and smooth;
+  - ``energy_oldsmooth`` / ``energy_s2_oldsmooth`` / ``rrt_blossom_oldsmooth``: smoothed as before
+    the smoother's repair a (``tripling_only(SmoothingConfig())``), the "before" of issue 7's
+    smoother change;
+  - ``energy_abc`` / ``energy_s2_abc`` / ``rrt_blossom_abc``: smoothed with repairs a-c but
+    without candidate d (``SmoothingConfig(try_without_shortcut=False)``).
 
 Every solved path goes through the shared smoothing and timing (``plan_trajectory``: shortcut +
 B-spline smoothing re-verified with the checker at 2.5 mm, servo-limited timing) and is measured:
@@ -77,6 +91,7 @@ from robot_rise.errors import FormatError, RobotRiseError
 from robot_rise.model import Robot, load_robot
 from robot_rise.planning.energy import EnergyParams, EnergyPlanner, SecondStageParams, segment_is_valid
 from robot_rise.planning.problem import PlanningProblem, PlanResult
+from robot_rise.planning.smoothing import SmoothingConfig, tripling_only
 from robot_rise.planning.timing import integrated_squared_jerk
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
@@ -409,11 +424,11 @@ class BenchRow:
     jerk_common_duration: float = math.nan  # filled by with_common_duration_jerk
 
 
-PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
+PLANNER_NAMES = ("energy", "rrt_blossom", "ompl_rrtconnect", "energy_keys", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
                  "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth", "energy_abc", "energy_s2_abc", "rrt_blossom_abc",
                  "energy_r1", "energy_nostraighten", "energy_nodense")
 THREE = ("energy", "rrt_blossom", "ompl_rrtconnect")  # the issue's comparison; the others are ablations
-ABLATIONS = ("energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
+ABLATIONS = ("energy_keys", "energy_s2", "energy_noshortcut", "energy_s2_noshortcut", "energy_raw",
              "energy_oldsmooth", "energy_s2_oldsmooth", "rrt_blossom_oldsmooth",
              "energy_abc", "energy_s2_abc", "rrt_blossom_abc",
              "energy_r1", "energy_nostraighten", "energy_nodense")  # run only when named in --planners
@@ -445,6 +460,13 @@ def with_common_duration_jerk(rows: list[BenchRow], reference: tuple[str, ...] =
     return out
 
 
+# The energy planner of the ablations (issue 7): the section 5.2 key postures and nothing after them
+# (the first round's default; second_stage=None alone would still straighten the limbs), and those
+# key postures through the section 6.2 second stage alone (no straightening, no dense output).
+_KEY_POSTURES = EnergyParams(straighten_limbs=False, second_stage=None)
+_KEY_POSTURES_S2 = EnergyParams(straighten_limbs=False, dense_output=False, second_stage=SecondStageParams())
+
+
 def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     from robot_rise.planning.ompl_adapter import OmplPlanner, ompl_available
     from robot_rise.planning.refine import RRTBlossomPlanner
@@ -452,16 +474,17 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [
         ("energy", EnergyPlanner()),
         ("rrt_blossom", RRTBlossomPlanner()),
-        # ablations, only when asked for by name
-        ("energy_s2", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),  # + section 6.2 second stage
-        ("energy_noshortcut", EnergyPlanner()),  # smoothed without the shared shortcut (see run_benchmark)
-        ("energy_s2_noshortcut", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
-        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False, second_stage=None))),  # Algorithm 1's raw alpha steps
-        ("energy_oldsmooth", EnergyPlanner()),  # the smoother before its repair a (see run_benchmark)
-        ("energy_s2_oldsmooth", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
+        # ablations, only when asked for by name (the smoothing of each: ``_smoothing``)
+        ("energy_keys", EnergyPlanner(_KEY_POSTURES)),
+        ("energy_s2", EnergyPlanner(_KEY_POSTURES_S2)),
+        ("energy_noshortcut", EnergyPlanner(_KEY_POSTURES)),
+        ("energy_s2_noshortcut", EnergyPlanner(_KEY_POSTURES_S2)),
+        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False, straighten_limbs=False, second_stage=None))),  # Algorithm 1's raw alpha steps
+        ("energy_oldsmooth", EnergyPlanner(_KEY_POSTURES)),
+        ("energy_s2_oldsmooth", EnergyPlanner(_KEY_POSTURES_S2)),
         ("rrt_blossom_oldsmooth", RRTBlossomPlanner()),
-        ("energy_abc", EnergyPlanner()),  # the smoother without its candidate d (see run_benchmark)
-        ("energy_s2_abc", EnergyPlanner(EnergyParams(second_stage=SecondStageParams()))),
+        ("energy_abc", EnergyPlanner(_KEY_POSTURES)),
+        ("energy_s2_abc", EnergyPlanner(_KEY_POSTURES_S2)),
         ("rrt_blossom_abc", RRTBlossomPlanner()),
         # issue 7, second round: the default before it, and the default without each of its changes
         ("energy_r1", EnergyPlanner(EnergyParams(straighten_limbs=False, dense_output=False,
@@ -474,6 +497,17 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     else:
         log.warning("the ompl package is not installed: ompl_rrtconnect skipped")
     return out
+
+
+def _smoothing(name: str) -> SmoothingConfig:
+    """The smoothing of benchmark row ``name``: the shared default, or its ablation's (NO_SHORTCUT, PREV_SMOOTH, OLD_SMOOTH)."""
+    if name in OLD_SMOOTH:
+        return tripling_only(SmoothingConfig())
+    if name in PREV_SMOOTH:
+        return SmoothingConfig(try_without_shortcut=False)
+    if name in NO_SHORTCUT:
+        return SmoothingConfig(shortcut_attempts=0)
+    return SmoothingConfig()
 
 
 def run_benchmark(
@@ -490,7 +524,6 @@ def run_benchmark(
     lying_cache: str | None = None,
 ) -> list[BenchRow]:
     """Every planner on every problem of ``sets``; smoothing and timing through ``plan_trajectory``."""
-    from robot_rise.planning.smoothing import SmoothingConfig, tripling_only
     from robot_rise.planning.to_trajectory import path_length, path_min_clearance, plan_trajectory
 
     robot = load_robot()
@@ -506,11 +539,7 @@ def run_benchmark(
             continue
         if not planners and name in ABLATIONS:
             continue
-        smoothing = SmoothingConfig(shortcut_attempts=0) if name in NO_SHORTCUT else SmoothingConfig()
-        if name in PREV_SMOOTH:
-            smoothing = SmoothingConfig(try_without_shortcut=False)
-        if name in OLD_SMOOTH:
-            smoothing = tripling_only(SmoothingConfig())
+        smoothing = _smoothing(name)
         for pset, pr in problems:
             problem = PlanningProblem(pr.start, pr.goal, checker, budget_s=budget_s, seed=seed + pr.variant)
             t0 = time.monotonic()
