@@ -122,3 +122,9 @@ def test_that_the_results_file_carries_its_format_and_merges_back(tmp_path, monk
     assert json.loads(out.read_text())["format"] == be.BENCH_ENERGY_FORMAT
     back = be._load_rows([str(out)])
     assert [(r.planner, r.kind, r.jerk) for r in back] == [("energy", "crossed_arms", 5.0)]
+
+
+def test_that_merge_names_a_file_it_cannot_read_in_one_line(tmp_path, capsys):
+    assert be.main(["--merge", str(tmp_path / "absent.json")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and err[0].startswith("error: ") and "absent.json: cannot be read" in err[0]

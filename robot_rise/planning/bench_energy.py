@@ -339,10 +339,15 @@ def _read_json(path: str, expected: str, *, missing_ok: bool = False, fields: tu
     with a warning instead of refused.
 
     Raises:
+        RobotRiseError: the file cannot be read.
         FormatError: not a JSON object, another (or, unless ``missing_ok``, no) ``format``, or a field missing.
     """
     try:
-        data = json.loads(Path(path).read_text())
+        text = Path(path).read_text()
+    except OSError as e:
+        raise RobotRiseError(f"{path}: cannot be read ({e.strerror})", hint="check the path") from e
+    try:
+        data = json.loads(text)
     except json.JSONDecodeError as e:
         raise FormatError(f"{path}: not a JSON file ({e})", hint=f"expected a {expected!r} file") from e
     if not isinstance(data, dict):
@@ -660,12 +665,9 @@ def _load_rows(paths: list[str]) -> list[BenchRow]:
             if not isinstance(r, dict):
                 raise FormatError(f"{p}: run {k} is not an object", hint="pass a file this benchmark wrote with --out")
             missing, unknown = sorted(required - set(r)), sorted(set(r) - names)
-            if missing or unknown:
-                raise FormatError(
-                    f"{p}: run {k} " + "; ".join(x for x in (f"lacks {', '.join(missing)}" if missing else "",
-                                                             f"has unknown fields {', '.join(unknown)}" if unknown else "") if x),
-                    hint=f"a run has the fields {', '.join(sorted(names))}",
-                )
+            wrong = ([f"lacks {', '.join(missing)}"] if missing else []) + ([f"has unknown fields {', '.join(unknown)}"] if unknown else [])
+            if wrong:
+                raise FormatError(f"{p}: run {k} " + "; ".join(wrong), hint=f"a run has the fields {', '.join(sorted(names))}")
             rows.append(BenchRow(**r))
     return rows
 
