@@ -244,7 +244,7 @@ def test_that_ground_contact_rows_stop_a_step_that_would_sink_a_resting_robot(se
     robot, checker, energy = setup
     q = checker.qpos_of(problems["crossed_arms"].start)  # supine, resting 0.5 mm above the ground
     p = EnergyParams()
-    scale = energy_module._tangent_scale(checker, p)
+    scale = energy_module._tangent_scale(checker, p.root_translation_scale_m)
     v = np.zeros(checker.model.nv)
     v[checker.index.qvel_root[2]] = -0.006  # straight down by 6 mm: through the 2 mm tolerance
     assert not checker.is_valid_qpos(tangent_step(checker.model, q, v))
@@ -315,7 +315,7 @@ def test_that_resampling_keeps_the_vertices_and_bounds_the_spacing(setup, proble
     dense = energy_module.resample_path(checker, keys, 0.05)
     assert len(dense) > len(keys)
     assert all(any(np.allclose(k, r) for r in dense) for k in keys)
-    scale = energy_module._tangent_scale(checker, EnergyParams())
+    scale = energy_module._tangent_scale(checker)
     steps = [float(np.linalg.norm(scale * tangent_difference(checker.model, a, b))) for a, b in zip(dense[:-1], dense[1:])]
     assert max(steps) <= 0.05 + 1e-9
 
@@ -436,7 +436,7 @@ def test_that_the_default_planner_straightens_and_writes_its_motion_densely(setu
     assert "left_leg" in leg["straightened"] and leg["second_stage"]["output"] in ("polyline", "bspline")
     q = result.path.qpos(checker)
     assert _limb_excursion(checker, q, "left_leg") < 1e-9
-    scale = energy_module._tangent_scale(checker, EnergyParams())
+    scale = energy_module._tangent_scale(checker)
     steps = [float(np.linalg.norm(scale * tangent_difference(checker.model, a, b))) for a, b in zip(q[:-1], q[1:])]
     assert max(steps) <= energy_module.OUTPUT_SPACING_RAD * 1.5  # the B-spline's samples: near the spacing
 

@@ -665,9 +665,9 @@ class InterpolationOutcome:
     stats: dict[str, Any] = field(default_factory=dict)
 
 
-def _tangent_scale(checker: ValidityChecker, p: EnergyParams) -> np.ndarray:
+def _tangent_scale(checker: ValidityChecker, root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M) -> np.ndarray:
     scale = np.ones(checker.model.nv)
-    scale[checker.index.qvel_root[:3]] = 1.0 / p.root_translation_scale_m
+    scale[checker.index.qvel_root[:3]] = 1.0 / root_translation_scale_m
     return scale
 
 
@@ -717,7 +717,7 @@ def energy_interpolate(
         return InterpolationOutcome(PlanStatus.INVALID_GOAL, None, "goal: " + "; ".join(checker.check_qpos(qpos_goal).reasons()))
     energy = energy if energy is not None else RepulsiveEnergy(checker, p)
     gli = gli if gli is not None else GliMatrix(checker.robot, m, checker.index)
-    scale = _tangent_scale(checker, p)
+    scale = _tangent_scale(checker, p.root_translation_scale_m)
     cons = _Constraints(checker, constraints, scale)
     levers = lever_arms(checker)
     root = np.asarray(checker.index.qvel_root)
@@ -944,6 +944,7 @@ def straighten_limbs(
     *,
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     levers: tuple[float, np.ndarray] | None = None,
+    root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M,
     deadline: float | None = None,
     stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
@@ -971,7 +972,7 @@ def straighten_limbs(
     """
     m = checker.model
     lev = levers if levers is not None else lever_arms(checker)
-    scale = _tangent_scale(checker, EnergyParams())
+    scale = _tangent_scale(checker, root_translation_scale_m)
     q = np.array(path, dtype=float)
     done: list[str] = []
     stopped = False
@@ -1021,7 +1022,7 @@ def resample_path(checker: ValidityChecker, path: np.ndarray, spacing_rad: float
         qpos rows, shape (K', nq), K' >= K, same first and last row.
     """
     m = checker.model
-    sc = scale if scale is not None else _tangent_scale(checker, EnergyParams())
+    sc = scale if scale is not None else _tangent_scale(checker)
     out = [np.array(path[0], dtype=float)]
     for a, b in zip(path[:-1], path[1:]):
         v = tangent_difference(m, a, b)
@@ -1033,7 +1034,7 @@ def resample_path(checker: ValidityChecker, path: np.ndarray, spacing_rad: float
 
 def trajectory_laplacian_energy(checker: ValidityChecker, path: np.ndarray, scale: np.ndarray | None = None) -> float:
     """Sum over interior frames of 1/2 |y_(t-1) - 2 y_t + y_(t+1)|^2, y the scaled tangent chart at the first frame [rad^2]."""
-    sc = scale if scale is not None else _tangent_scale(checker, EnergyParams())
+    sc = scale if scale is not None else _tangent_scale(checker)
     y = np.array([sc * tangent_difference(checker.model, path[0], q) for q in path])
     if len(y) < 3:
         return 0.0
@@ -1134,8 +1135,8 @@ def second_stage(
     from scipy.sparse.linalg import spsolve
 
     m = checker.model
-    ep = dataclasses.replace(EnergyParams(), root_translation_scale_m=root_translation_scale_m)
-    scale = _tangent_scale(checker, ep)
+    scale = _tangent_scale(checker, root_translation_scale_m)
+    ep = EnergyParams()  # eq. (10)-(11)'s damping and energy step (the defaults)
     levers = lever_arms(checker)
     q = resample_path(checker, np.asarray(path, dtype=float), params.frame_spacing_rad, scale)
     n, nv = len(q), int(m.nv)
@@ -1250,6 +1251,7 @@ def dense_output(
     spacing_rad: float = OUTPUT_SPACING_RAD,
     resolution_m: float = ENERGY_VERIFY_RESOLUTION_M,
     levers: tuple[float, np.ndarray] | None = None,
+    root_translation_scale_m: float = ROOT_TRANSLATION_SCALE_M,
     deadline: float | None = None,
     stats: dict[str, Any] | None = None,
 ) -> np.ndarray:
@@ -1278,7 +1280,7 @@ def dense_output(
         qpos rows, shape (K', nq), K' >= K, same first and last row.
     """
     lev = levers if levers is not None else lever_arms(checker)
-    scale = _tangent_scale(checker, EnergyParams())
+    scale = _tangent_scale(checker, root_translation_scale_m)
     m = checker.model
     path = np.asarray(path, dtype=float)
     poly = resample_path(checker, path, spacing_rad, scale)
@@ -1332,7 +1334,8 @@ def _refine_leg(
             stopped.append("key postures")
     if params.straighten_limbs and len(q_leg) > 2:
         s = {}
-        q_leg = straighten_limbs(checker, q_leg, resolution_m=res, deadline=deadline, stats=s)
+        q_leg = straighten_limbs(checker, q_leg, resolution_m=res, root_translation_scale_m=params.root_translation_scale_m,
+                                 deadline=deadline, stats=s)
         leg_stats["straightened"] = s["straightened"]
         if s["stopped_on_budget"]:
             stopped.append("straightening")
@@ -1345,7 +1348,8 @@ def _refine_leg(
             stopped.append("second stage")
         if params.dense_output:
             s = {}
-            q_leg = dense_output(checker, q_leg, resolution_m=res, deadline=deadline, stats=s)
+            q_leg = dense_output(checker, q_leg, resolution_m=res, root_translation_scale_m=params.root_translation_scale_m,
+                                 deadline=deadline, stats=s)
             s2.update(output=s["output"], output_frames=s["output_frames"])
             if s["stopped_on_budget"]:
                 stopped.append("dense output")
