@@ -450,7 +450,7 @@ class Executor:
             step("clearing the Bus Watchdog", lambda: disarm_watchdog(group))
         try:
             now_fb = group.read_feedback()
-        except Exception:  # noqa: BLE001 - stopping must go on with what we have
+        except (Exception, KeyboardInterrupt):  # noqa: BLE001 - stopping must go on with what we have
             now_fb = fb
         hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad) if hold_rad is None else hold_rad
         ok = np.isfinite(hold)
