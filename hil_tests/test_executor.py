@@ -421,3 +421,34 @@ def test_that_a_tripped_watchdog_is_refused_before_streaming(servo_map: ServoMap
     r.mock.advance()
     with pytest.raises(SafetyError, match="has tripped"):
         _run(r)
+
+
+def test_that_a_failed_step_of_the_stop_does_not_skip_the_rest(servo_map: ServoMap,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    import drivers.executor as executor_module
+    from drivers.errors import CommunicationError
+
+    def refuse(group, timeout_s):
+        raise CommunicationError("write timeout")
+
+    monkeypatch.setattr(executor_module, "arm_watchdog", refuse)  # the stop's first step fails
+    r = _ready(servo_map)
+
+    def fail(bus) -> None:
+        raise RuntimeError("a bug")
+
+    r.mock.faults.at(r.clock.now() + 0.3, fail)
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.3)
+    assert [f.kind for f in rep.faults] == [FaultKind.HOST, FaultKind.COMMUNICATION]
+    assert "re-arming the Bus Watchdog failed" in rep.faults[1].message
+    assert not any(r.mock.servo(s).torque_on for s in servo_map.ids)  # the ramp and torque off still ran
+    assert _pwm_accepted(r) == [0] * len(servo_map)
+
+
+def test_that_a_limp_stop_also_reaches_a_quarantined_servo(servo_map: ServoMap) -> None:
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.silence(2))
+    rep = _run(r, stop_policy=StopPolicy.LIMP, limp_s=0.3)
+    assert not rep.completed and 2 in r.group.quarantined
+    # servo 2 stopped answering, not listening: it got the ramp and the torque off too
+    assert not r.mock.servo(2).torque_on
