@@ -19,6 +19,8 @@ import struct
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from fastcrc.crc16 import umts as _umts
+
 from drivers.errors import ProtocolError
 
 __all__ = [
@@ -119,54 +121,10 @@ def _make_crc_table() -> tuple[int, ...]:
 
 
 _CRC_TABLE = _make_crc_table()
-_CRC_NUMPY_MIN = 40  # [bytes] below this the plain table loop is faster than numpy
-_CRC_MAX_POSITIONS = 2048  # [bytes] longest span the positional tables cover (longer: loop)
-
-
-class _PositionalCrc:
-    """CRC-16 by linearity: with init 0 the CRC is linear over GF(2), so
-    ``crc(data) = XOR_i T[L-1-i][data[i]]`` where ``T[k][b]`` is the CRC of byte ``b`` followed
-    by ``k`` zero bytes. One gather and one XOR-reduce in numpy replace the per-byte loop.
-    A running CRC ``c`` is continued by XOR-ing it into the first two data bytes (the
-    "direct" table algorithm equals the augmented one with the register preloaded)."""
-
-    def __init__(self, n_positions: int) -> None:
-        import numpy as np
-
-        self._np = np
-        table = np.array(_CRC_TABLE, dtype=np.uint16)
-        # shift[c] = register c after one more zero byte; shift composed m times maps row k
-        # to row k + m, so the rows are built by doubling (log2(n) gathers, a few ms)
-        c = np.arange(1 << 16, dtype=np.uint32)
-        shift = (((c << 8) & 0xFF00) ^ table[c >> 8]).astype(np.uint16)
-        rows = np.empty((n_positions, 256), dtype=np.uint16)
-        rows[0] = table
-        done = 1
-        while done < n_positions:
-            take = min(done, n_positions - done)
-            rows[done:done + take] = shift[rows[:take]]
-            shift = shift[shift]
-            done += take
-        self._flat = rows.reshape(-1)
-        self._flat.setflags(write=False)
-        # offsets[n - L:] == (L-1, L-2, ..., 0) * 256
-        self._offsets = np.arange(n_positions - 1, -1, -1, dtype=np.intp) * 256
-        self._n = n_positions
-
-    def __call__(self, data: bytes | bytearray | memoryview, crc: int) -> int:
-        np = self._np
-        arr = np.frombuffer(data, dtype=np.uint8).astype(np.intp)
-        if crc:
-            arr[0] ^= crc >> 8
-            arr[1] ^= crc & 0xFF
-        arr += self._offsets[self._n - arr.size:]
-        return int(np.bitwise_xor.reduce(self._flat[arr]))
-
-
-_positional = _PositionalCrc(_CRC_MAX_POSITIONS)  # built at import (~10 ms), not in the first cycle
 
 
 def _crc16_loop(data: bytes | bytearray | memoryview, crc: int) -> int:
+    """The byte-table CRC, written out: the reference the tests hold :func:`crc16` to."""
     table = _CRC_TABLE
     for b in data:
         crc = ((crc << 8) & 0xFF00) ^ table[((crc >> 8) ^ b) & 0xFF]
@@ -174,15 +132,10 @@ def _crc16_loop(data: bytes | bytearray | memoryview, crc: int) -> int:
 
 
 def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
-    """Protocol 2.0 CRC-16 of ``data`` (continuing from ``crc``).
-
-    Short spans use the byte table loop; long ones (status frames of group reads) a positional
-    table in numpy, about ten times faster at 360 bytes. Both give identical results.
-    """
-    n = len(data)
-    if n < _CRC_NUMPY_MIN or n > _CRC_MAX_POSITIONS:
-        return _crc16_loop(data, crc)
-    return _positional(data, crc)
+    """Protocol 2.0 CRC-16 of ``data`` (continuing from ``crc``): CRC-16/UMTS (= BUYPASS) in
+    ``fastcrc`` (compiled): ~4 us for a 20-servo reply with cold caches, where a numpy
+    positional table took ~46 us and the byte loop ~40 us; checked against dynamixel-sdk's."""
+    return _umts(data, crc)
 
 
 def add_stuffing(body: bytes) -> bytes:
