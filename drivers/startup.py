@@ -216,9 +216,9 @@ def engage(group: ServoGroup, *, watchdog_s: float | None = 0.1) -> None:
     if not fb.valid.all():
         missing = [sid for sid, ok in zip(group.ids, fb.valid) if not ok]
         raise CommunicationError(f"no present position from servo(s) {missing}; not engaging")
-    require_inside_limits(fb.position_rad, group.map.lower_rad, group.map.upper_rad,
-                          [sp.label for sp in group.map.servos], "not engaging")
     smap = group.map
+    require_inside_limits(fb.position_rad, smap.lower_rad, smap.upper_rad, [sp.label for sp in smap.servos],
+                          "not engaging")
     ticks = group.write_goals(np.clip(fb.position_rad, smap.lower_rad, smap.upper_rad))
     _check_goals_taken(group, ticks)
     group.torque(True)
@@ -231,15 +231,13 @@ def _check_goals_taken(group: ServoGroup, ticks: NDArray[np.int64]) -> None:
     (shape (n,), map order) by more than ``GOAL_READBACK_TOLERANCE_TICKS``: the sync write has
     no reply, and a servo that refused it (Data Limit Error: its own Min/Max Position Limit
     differs from the map; Data Range Error: a tripped Bus Watchdog) keeps an old goal."""
-    reg = group.map.servos[0].table["goal_position"]  # one address for all (X-series layout)
-    r = group.bus.sync_read(reg.address, reg.size, list(group.ids))
-    if r.missing:
-        raise CommunicationError(f"no goal position read back from servo(s) {list(r.missing)}; not engaging")
-    wrong = []
-    for spec, written in zip(group.map.servos, ticks):
-        got = reg.decode(r.data[spec.id])
-        if abs(got - int(written)) > GOAL_READBACK_TOLERANCE_TICKS:
-            wrong.append(f"{spec.label}: goal {got} ticks read back, {int(written)} written")
+    read = group.read_each("goal_position")
+    missing = [sid for sid in group.ids if sid not in read]
+    if missing:
+        raise CommunicationError(f"no goal position read back from servo(s) {missing}; not engaging")
+    wrong = [f"{spec.label}: goal {read[spec.id]} ticks read back, {int(written)} written"
+             for spec, written in zip(group.map.servos, ticks)
+             if abs(read[spec.id] - int(written)) > GOAL_READBACK_TOLERANCE_TICKS]
     if wrong:
         raise SafetyError("goal = present did not take, not engaging: " + "; ".join(wrong),
                           hint="the servo refused the goal: run preflight (it writes the position limits "
