@@ -12,7 +12,7 @@ system-deps:
 
 $(BIN)/robot-rise: pyproject.toml
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet --upgrade pip 'setuptools>=77'
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $@
 
@@ -34,7 +34,7 @@ bench: $(BIN)/robot-rise
 
 bench-planning: $(BIN)/robot-rise
 	$(BIN)/pip install --quiet -e '.[bench]'
-	$(BIN)/python -m robot_rise.planning.bench_planning --seed 1 --budget 10 --out out/bench_planning.json
+	$(BIN)/python -m robot_rise.bench.planning --seed 1 --budget 10 --out out/bench_planning.json
 
 clean:
 	rm -rf $(VENV) out

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.bench import bench_bus, format_result
+from robot_rise.bench.bus import bench_bus, format_result
 
 
 @pytest.mark.parametrize("transport", ["pty", "inprocess"])

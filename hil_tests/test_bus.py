@@ -141,7 +141,7 @@ def test_that_a_stale_byte_left_in_the_input_never_becomes_data(rig: Rig) -> Non
 
 
 def test_that_pipelined_cycles_keep_the_wire_order_and_read_what_sequential_cycles_read(rig: Rig) -> None:
-    from drivers.bench import pipelined_cycles
+    from drivers.pipeline import pipelined_cycles
     from drivers.protocol import Instruction
 
     from drivers.startup import engage
@@ -161,7 +161,7 @@ def test_that_pipelined_cycles_keep_the_wire_order_and_read_what_sequential_cycl
 
 
 def test_that_pipelined_cycles_fall_back_and_isolate_a_silent_servo(rig: Rig) -> None:
-    from drivers.bench import pipelined_cycles
+    from drivers.pipeline import pipelined_cycles
 
     preflight(rig.group)
     rig.mock.faults.silence(8)
@@ -170,7 +170,7 @@ def test_that_pipelined_cycles_fall_back_and_isolate_a_silent_servo(rig: Rig) ->
 
 
 def test_that_a_pipelined_reply_out_of_order_is_drained_before_the_fallback_read(rig: Rig, monkeypatch) -> None:
-    from drivers.bench import pipelined_cycles
+    from drivers.pipeline import pipelined_cycles
     from drivers.protocol import Instruction
 
     preflight(rig.group)

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import drivers.mockbus as mb
-from drivers.bench import _map
+from drivers.servo_map import BusSpec, ServoMap, ServoSpec
 from drivers.bus import DynamixelBus
 from drivers.clock import FakeClock
 from drivers.group import ServoGroup
@@ -184,3 +184,8 @@ def test_that_the_precomputed_goal_frame_equals_the_generic_sync_write(q: list[f
     expected = encode_packet(BROADCAST_ID, Instruction.SYNC_WRITE, sync_write_params(
         116, 4, {sid: struct.pack("<i", int(t)) for sid, t in zip(smap.ids, ticks)}))
     assert wire.written == [expected]
+
+
+def _map(n: int, baud: int) -> ServoMap:
+    servos = tuple(ServoSpec(i, f"j{i}", "XM430-W350", min=-1.5, max=1.5) for i in range(1, n + 1))
+    return ServoMap("bench", BusSpec(baud, 0.0), servos)

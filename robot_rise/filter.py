@@ -7,7 +7,7 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
 
 1. join the planned path to the library motion from the connecting frame on, blending the
    targets over ``blend_s`` around the join (000 section 4.3);
-2. play it through the servo model (robot_rise.sim) from the start posture;
+2. play it through the servo model (robot_rise.sim.player) from the start posture;
 3. find violations: torque beyond (1 - margin) of the torque-speed envelope (dissertation 003
    eq. 2.2 strength limits; for us the DC-motor envelope), ZMP outside the support polygon while
    on the feet (003 eq. 2.11-2.14), the motion diverging from the plan (tracking error beyond
@@ -42,12 +42,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from robot_rise.judge import StandVerdict, judge, supported_on_feet, world_contact
+from robot_rise.sim.standing import StandVerdict, judge, supported_on_feet, world_contact
 from robot_rise.model import Robot, model_index
 from robot_rise.paths import scene_path
 from robot_rise.posture import Posture, yaw_rad
 from robot_rise.servo import servo_spec
-from robot_rise.sim import Player, Recording
+from robot_rise.sim.player import Player, Recording
 from robot_rise.trajectory import Trajectory
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 

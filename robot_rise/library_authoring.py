@@ -301,7 +301,7 @@ def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: 
     """Play ``kfs`` on every player: per-segment peak torque/envelope ratio (max over players,
     including the 0.2 s after each segment, where a late tracking error shows) and whether every
     play stands without self collision (and why not)."""
-    from robot_rise.judge import judge
+    from robot_rise.sim.standing import judge
 
     tr = build_trajectory(robot, start, kfs)
     times = np.array([0.0] + [k.t_s for k in kfs])
@@ -755,7 +755,7 @@ MOTION_SPECS: list[MotionSpec] = [
 
 def robustness_players(robot: Robot) -> list:
     """Players for nominal and the four friction/mass corners of issue 4 (flat ground)."""
-    from robot_rise.sim import Player
+    from robot_rise.sim.player import Player
 
     players = [Player(robot, "flat")]
     for f in (ROBUST_FRICTION[0], ROBUST_FRICTION[-1]):
@@ -779,7 +779,7 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
     were, so ``index.json`` always names motions that pass. Rows of motions no longer in
     ``MOTION_SPECS`` are dropped when the whole library is rebuilt (``names`` None).
     """
-    from robot_rise.judge import judge
+    from robot_rise.sim.standing import judge
 
     robot = robot or load_robot()
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -36,7 +36,7 @@ import numpy as np
 from robot_rise.errors import RobotRiseError
 from robot_rise.model import Robot, compose, model_index
 from robot_rise.posture import yaw_rad
-from robot_rise.sim import DEFAULT_HOLD_S, Recording, play
+from robot_rise.sim.player import DEFAULT_HOLD_S, Recording, play
 from robot_rise.trajectory import Trajectory
 
 __all__ = [

@@ -36,11 +36,12 @@ import mujoco
 import numpy as np
 
 from robot_rise.filter import FilterSettings, prove
-from robot_rise.judge import StandVerdict, convex_hull_2d
+from robot_rise.sim.balance import convex_hull_2d
+from robot_rise.sim.standing import StandVerdict
 from robot_rise.model import SUPPLY_VOLTAGE_V, Robot, compose, model_index
 from robot_rise.render import CameraSpec, RenderError, check_camera, contact_sheet, key_frame_times, render, render_frames
 from robot_rise.servo import servo_arrays
-from robot_rise.sim import Recording
+from robot_rise.sim.player import Recording
 from robot_rise.trajectory import Trajectory
 
 __all__ = ["ReportResult", "write_report", "REPORT_FILE", "SOLE_CONTACT_TOLERANCE_M"]

@@ -1,4 +1,4 @@
-"""Tests of robot_rise.planning.bench_energy's files: the lying60 problem cache and the --out results."""
+"""Tests of robot_rise.bench.energy's files: the lying60 problem cache and the --out results."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from robot_rise.errors import FormatError
 from robot_rise.model import load_robot
-from robot_rise.planning import bench_energy as be
+from robot_rise.bench import energy as be
 from robot_rise.posture import posture_to_dict
 from robot_rise.validity import ValidityChecker
 

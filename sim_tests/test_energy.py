@@ -13,7 +13,7 @@ import pytest
 from robot_rise.constants import ENERGY_LOCAL_MINIMUM_PATIENCE
 from robot_rise.model import load_robot
 from robot_rise.planning import energy as energy_module
-from robot_rise.planning.bench_energy import crossed_problems, straight_motion_is_illegal
+from robot_rise.bench.energy import crossed_problems, straight_motion_is_illegal
 from robot_rise.planning.energy import (
     EnergyParams,
     EnergyPlanner,
@@ -473,7 +473,7 @@ def _min_jerk(duration_s, amplitude, period_s=0.002):
 
 
 def test_that_jerk_at_a_common_duration_is_exact_for_a_uniformly_slower_motion():
-    from robot_rise.planning import bench_energy as be
+    from robot_rise.bench import energy as be
 
     amp = np.array([1.0, -0.5, 0.2])
     t1, q1 = _min_jerk(1.0, amp)
@@ -487,7 +487,7 @@ def test_that_jerk_at_a_common_duration_is_exact_for_a_uniformly_slower_motion()
 
 
 def test_that_the_common_duration_is_the_longest_of_the_three_planners():
-    from robot_rise.planning import bench_energy as be
+    from robot_rise.bench import energy as be
 
     def row(planner, jerk, dur, solved=True):
         return be.BenchRow(planner, "crossed", "crossed_legs", 0, solved, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, dur, "")
@@ -544,7 +544,7 @@ def test_that_plan_with_the_energy_planner_writes_the_same_trajectory_format(set
 
 
 def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the_default():
-    from robot_rise.planning import bench_energy
+    from robot_rise.bench import energy as bench_energy
 
     planners = dict(bench_energy._planners())
     assert set(planners) - {"ompl_rrtconnect"} <= set(bench_energy.PLANNER_NAMES)
@@ -574,7 +574,7 @@ def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the
 
 
 def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_planner():
-    from robot_rise.planning.bench_energy import BenchRow, paired_jerk_table
+    from robot_rise.bench.energy import BenchRow, paired_jerk_table
 
     def row(planner, variant, jerk):
         return BenchRow(planner, "crossed", "crossed_arms", variant, True, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, 1.0, "")

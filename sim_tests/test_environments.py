@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from robot_rise.benchmarks import ENVIRONMENT_SCENES, environment_postures
+from robot_rise.bench.rise import ENVIRONMENT_SCENES, environment_postures
 from robot_rise.cli import main
 from robot_rise.filter import ankle_joints, ground_tilt_vector, prove, slope_ankle_offsets
 from robot_rise.model import compose, model_index

@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import robot_rise.judge as judge_mod
-from robot_rise.judge import convex_hull_2d, judge, support_margin, zmp_point_mass
+import robot_rise.sim.balance as balance
+import robot_rise.sim.standing as judge_mod
+from robot_rise.sim.balance import convex_hull_2d, support_margin, zmp_point_mass
+from robot_rise.sim.standing import judge
 from robot_rise.model import load_robot
 from robot_rise.posture import Posture
-from robot_rise.sim import Player
+from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory
 
 
@@ -169,8 +171,8 @@ def test_zmp_of_many_samples_equals_one_at_a_time() -> None:
     rng = np.random.default_rng(3)
     m = rng.uniform(0.1, 1.0, 21)
     p, a = rng.normal(size=(40, 21, 3)), rng.normal(size=(40, 21, 3))
-    many = judge_mod.zmp_point_mass_many(m, p, a)
+    many = balance.zmp_point_mass_many(m, p, a)
     one = np.array([zmp_point_mass(m, p[i], a[i]) for i in range(40)])
     np.testing.assert_allclose(many, one, rtol=0, atol=1e-12)
-    a[:, :, 2] = -judge_mod.GRAVITY_M_S2  # free fall
-    assert np.isnan(judge_mod.zmp_point_mass_many(m, p, a)).all()
+    a[:, :, 2] = -balance.GRAVITY_M_S2  # free fall
+    assert np.isnan(balance.zmp_point_mass_many(m, p, a)).all()

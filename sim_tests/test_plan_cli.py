@@ -9,7 +9,7 @@ import pytest
 
 from robot_rise.cli import main
 from robot_rise.model import load_robot
-from robot_rise.planning.bench_problems import obstacle_problems
+from robot_rise.bench.problems import obstacle_problems
 from robot_rise.posture import write_posture
 from robot_rise.trajectory import read_trajectory
 from robot_rise.validity import ValidityChecker

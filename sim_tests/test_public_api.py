@@ -25,20 +25,58 @@ def test_every_name_in_all_resolves(name):
         assert hasattr(module, exported), f"{name}.__all__ names missing {exported}"
 
 
-def test_core_never_imports_drivers_and_drivers_never_import_core():
+# Rooms above the core: they may import drivers and the core; the core imports none of them.
+ABOVE_THE_CORE = ("cli", "bench", "authoring")
+
+
+def _imported_modules(path):
     import ast
+
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            yield from (a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            yield node.module
+
+
+def _room(path, package_root):
+    parts = path.relative_to(package_root).parts
+    if parts == ("__main__.py",):
+        return "cli"  # `python -m robot_rise` is the CLI
+    return parts[0] if len(parts) > 1 else ""
+
+
+def test_core_never_imports_drivers_and_drivers_never_import_core():
     from pathlib import Path
 
     root = Path(robot_rise.__file__).parent.parent
     for pkg, forbidden in (("robot_rise", "drivers"), ("drivers", "robot_rise")):
         for path in (root / pkg).rglob("*.py"):
-            if pkg == "robot_rise" and "cli" in path.parts:
-                continue  # the CLI is the one room that wires both
-            tree = ast.parse(path.read_text())
-            for node in ast.walk(tree):
-                names = []
-                if isinstance(node, ast.Import):
-                    names = [a.name for a in node.names]
-                elif isinstance(node, ast.ImportFrom) and node.module:
-                    names = [node.module]
-                assert not any(n == forbidden or n.startswith(forbidden + ".") for n in names), f"{path} imports {forbidden}"
+            if pkg == "robot_rise" and _room(path, root / pkg) in ABOVE_THE_CORE:
+                continue  # the CLI wires both; benchmarks measure both
+            for n in _imported_modules(path):
+                assert not (n == forbidden or n.startswith(forbidden + ".")), f"{path} imports {forbidden}"
+
+
+def test_the_core_never_imports_the_rooms_above_it():
+    from pathlib import Path
+
+    pkg_root = Path(robot_rise.__file__).parent
+    above = tuple(f"robot_rise.{room}" for room in ABOVE_THE_CORE)
+    for path in pkg_root.rglob("*.py"):
+        room = _room(path, pkg_root)
+        if room in ABOVE_THE_CORE:
+            continue
+        for n in _imported_modules(path):
+            bad = [a for a in above if n == a or n.startswith(a + ".")]
+            assert not bad, f"{path.relative_to(pkg_root.parent)} imports {n}: only the CLI and tests import {', '.join(ABOVE_THE_CORE)}"
+
+
+def test_the_bench_rooms_import_no_cli():
+    from pathlib import Path
+
+    pkg_root = Path(robot_rise.__file__).parent
+    for room in ("bench", "authoring"):
+        for path in (pkg_root / room).rglob("*.py"):
+            for n in _imported_modules(path):
+                assert not n.startswith("robot_rise.cli"), f"{path} imports the CLI ({n})"

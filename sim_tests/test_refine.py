@@ -7,7 +7,7 @@ import pytest
 
 from robot_rise.constants import LOOSE_TO_STRICT_INCREMENT_M, VERIFY_RESOLUTION_M
 from robot_rise.model import load_robot
-from robot_rise.planning.bench_problems import obstacle_problems
+from robot_rise.bench.problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
 from robot_rise.planning.refine import RRTBlossomPlanner, _runs, limbs_of_collisions, loose_to_strict_schedule
@@ -131,7 +131,7 @@ def test_that_refinement_with_replanned_segments_is_deterministic_for_a_seed(rob
     """Loose-to-strict levels and cut-and-merge replans give the same path for the same seed,
     also when a partial-body attempt gives up: it stops after an iteration count, not a time,
     so the full-body search after it starts from the same random state on any machine."""
-    from robot_rise.planning.bench_problems import load_problem_set
+    from robot_rise.bench.problems import load_problem_set
     from robot_rise.planning.refine import PARTIAL_BODY_MAX_ITERATIONS
 
     p = next(q for q in load_problem_set(robot) if q.name == "beam/library")  # prone beside the beam, frozen goal

@@ -19,7 +19,7 @@ from robot_rise.render import (
     render_frames,
     view,
 )
-from robot_rise.sim import Recording, play
+from robot_rise.sim.player import Recording, play
 from robot_rise.trajectory import Trajectory
 
 ARM_JOINTS = ("l_sho_pitch", "r_sho_pitch", "l_el", "r_el")

@@ -10,7 +10,7 @@ import pytest
 from robot_rise.constants import VERIFY_RESOLUTION_M
 from robot_rise.errors import PostureError
 from robot_rise.model import load_robot
-from robot_rise.planning.bench_problems import align_to_start, fallback_connecting_posture, lying_problems
+from robot_rise.bench.problems import align_to_start, fallback_connecting_posture, lying_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
 from robot_rise.planning.refine import RRTBlossomPlanner
@@ -173,7 +173,7 @@ def test_that_a_posture_of_another_robot_is_an_input_error(robot, flat, problems
 def test_that_every_public_name_of_the_planning_modules_resolves():
     import importlib
 
-    for mod in ("space", "motion_validator", "rrt_blossom", "refine", "smoothing", "timing", "to_trajectory", "bench_problems"):
+    for mod in ("space", "motion_validator", "rrt_blossom", "refine", "smoothing", "timing", "to_trajectory"):
         m = importlib.import_module(f"robot_rise.planning.{mod}")
         for name in m.__all__:
             assert hasattr(m, name), f"robot_rise.planning.{mod}.{name}"
@@ -245,7 +245,7 @@ def test_that_turning_over_is_found_when_the_straight_slerp_is_a_somersault(robo
     a 10 s budget without it); with the uniform share seeds 0-5 need at most 310 nodes in both
     trees together. The node limit, not the clock, decides: the test does not depend on the
     machine's speed."""
-    from robot_rise.planning.bench_problems import _lying_posture
+    from robot_rise.bench.problems import _lying_posture
     from robot_rise.planning.refine import PlannerConfig
     from robot_rise.planning.rrt_blossom import BlossomConfig
 
@@ -265,7 +265,7 @@ def test_that_the_frozen_benchmark_problems_follow_the_papers_protocol_and_are_l
     import json
 
     from robot_rise.paths import configs_dir
-    from robot_rise.planning.bench_problems import DEFAULT_PROBLEMS_FILE, PROBLEMS_FORMAT, load_problem_set
+    from robot_rise.bench.problems import DEFAULT_PROBLEMS_FILE, PROBLEMS_FORMAT, load_problem_set
 
     assert json.loads((configs_dir() / DEFAULT_PROBLEMS_FILE).read_text())["format"] == PROBLEMS_FORMAT
     probs = load_problem_set(robot)
@@ -281,7 +281,7 @@ def test_that_the_frozen_benchmark_problems_follow_the_papers_protocol_and_are_l
 
 
 def test_that_a_problem_file_of_another_format_is_refused(robot, tmp_path):
-    from robot_rise.planning.bench_problems import load_problem_set
+    from robot_rise.bench.problems import load_problem_set
 
     f = tmp_path / "p.json"
     f.write_text('{"format": "robot-rise/planning-problems@0", "robot": "op3", "problems": []}')

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import robot_rise.sim as sim
+import robot_rise.sim.player as sim
 from robot_rise.errors import RobotRiseError
 from robot_rise.library_authoring import settle, sym
 from robot_rise.model import load_robot
-from robot_rise.sim import Player
+from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory
 
 
@@ -74,7 +74,7 @@ def test_a_trajectory_for_other_joints_is_rejected(robot) -> None:  # type: igno
 def _reference_play(player: Player, tr: Trajectory, start, hold_s: float, record_hz: float) -> dict:  # type: ignore[no-untyped-def]
     import mujoco
 
-    from robot_rise.judge import support_margin, zmp_point_mass
+    from robot_rise.sim.balance import support_margin, zmp_point_mass
 
     robot, m, d, idx, servos = player.robot, player.model, player.data, player.index, player.servos
     player.reset(start if start is not None else tr.start)

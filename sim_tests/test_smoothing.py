@@ -7,7 +7,7 @@ import pytest
 
 from robot_rise.constants import VERIFY_RESOLUTION_M
 from robot_rise.model import load_robot
-from robot_rise.planning.bench_problems import obstacle_problems
+from robot_rise.bench.problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PostureSequence
 from robot_rise.planning.refine import RRTBlossomPlanner

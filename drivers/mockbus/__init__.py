@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import serial
 
-from drivers.mockbus.bus import BAUD_BY_INDEX, MockBus, Reply
+from drivers.mockbus.emulator import BAUD_BY_INDEX, MockBus, Reply
 from drivers.mockbus.faults import FaultInjector, ScheduledFault
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoCommand, ServoMotion
 from drivers.mockbus.protocol_dxlsim import attach, attached, detach, parse_ids
 from drivers.mockbus.pty_server import PtyServer, PtyServerProcess, spawn_pty_server
-from drivers.mockbus.servo import EmulatedServo, ThermalModel
+from drivers.mockbus.emulated_servo import EmulatedServo, ThermalModel
 
 __all__ = [
     "BAUD_BY_INDEX",

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from drivers.mockbus.bus import MockBus
+    from drivers.mockbus.emulator import MockBus
 
 __all__ = ["FaultInjector", "ScheduledFault"]
 

@@ -20,7 +20,7 @@ from typing import Any
 
 import serial
 
-from drivers.mockbus.bus import MockBus
+from drivers.mockbus.emulator import MockBus
 
 __all__ = ["Serial", "attach", "detach", "attached", "parse_ids"]
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drivers.clock import SPIN_MARGIN_S, MonotonicClock, realtime_scheduling
-from drivers.mockbus.bus import MockBus
+from drivers.mockbus.emulator import MockBus
 from drivers.mockbus.protocol_dxlsim import parse_ids
 
 __all__ = [

@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
-    from robot_rise.benchmarks import ENVIRONMENT_SCENES
+    from robot_rise.bench.rise import ENVIRONMENT_SCENES
 
     e = bsub.add_parser("environments", help="rise from postures placed in each scene of paper 000 section 5.2",
                         formatter_class=Formatter,
@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_validity(args: argparse.Namespace) -> int:
-    from robot_rise.benchmarks import bench_validity
+    from robot_rise.bench.rise import bench_validity
 
     robot = load_robot_arg(args)
     results = [bench_validity(robot, s, n=args.n, seed=args.seed) for s in (args.scene or ["flat", "table"])]
@@ -75,7 +75,7 @@ def run_validity(args: argparse.Namespace) -> int:
 
 
 def run_rise(args: argparse.Namespace) -> int:
-    from robot_rise.benchmarks import bench_rise, summarize_rise
+    from robot_rise.bench.rise import bench_rise, summarize_rise
     from robot_rise.cli._common import Progress
 
     robot = load_robot_arg(args)
@@ -101,7 +101,7 @@ def run_rise(args: argparse.Namespace) -> int:
 
 
 def run_environments(args: argparse.Namespace) -> int:
-    from robot_rise.benchmarks import ENVIRONMENT_SCENES, bench_environments, environments_table
+    from robot_rise.bench.rise import ENVIRONMENT_SCENES, bench_environments, environments_table
     from robot_rise.cli._common import Progress
 
     robot = load_robot_arg(args)

@@ -30,7 +30,7 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.bench import bench_bus, format_result
+    from robot_rise.bench.bus import bench_bus, format_result
 
     for baud in args.baud or (1_000_000, 4_000_000):
         r = bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds, transport=args.transport,

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     clock = None
     if args.mock:
         if args.twin:
-            from robot_rise.twin import MujocoTwin
+            from robot_rise.sim.twin import MujocoTwin
 
             scene = args.scene or traj.report.get("scene") or "flat"
             twin = MujocoTwin(robot, scene, start=traj.start)

@@ -70,8 +70,8 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _play(args: argparse.Namespace) -> int:
-    from robot_rise.judge import judge
-    from robot_rise.sim import Player
+    from robot_rise.sim.standing import judge
+    from robot_rise.sim.player import Player
 
     robot, lib = _load(args)
     m = lib.get(args.name)
@@ -84,7 +84,7 @@ def _play(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from robot_rise.bench_library import bench_selection
+    from robot_rise.bench.library import bench_selection
 
     robot, lib = _load(args)
     result = bench_selection(robot, lib, n=args.n, seed=args.seed)

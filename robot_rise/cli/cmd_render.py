@@ -7,7 +7,7 @@ import argparse
 from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import RobotRiseError
 from robot_rise.render import CAMERA_PRESETS, CameraSpec, render
-from robot_rise.sim import DEFAULT_HOLD_S
+from robot_rise.sim.player import DEFAULT_HOLD_S
 
 __all__ = ["register", "run", "add_camera_args", "camera_from_args", "load_trajectory_for"]  # re-exported from _common for callers
 

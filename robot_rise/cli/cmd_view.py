@@ -7,7 +7,7 @@ import argparse
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg
 from robot_rise.cli._common import load_trajectory_for
 from robot_rise.render import require_display, view
-from robot_rise.sim import DEFAULT_HOLD_S, play
+from robot_rise.sim.player import DEFAULT_HOLD_S, play
 
 __all__ = ["register", "run"]
 

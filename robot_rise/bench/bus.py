@@ -1,6 +1,6 @@
 """Bus benchmark: cycle rate vs the wire-time limit, host CPU per cycle, jitter at 100 Hz.
 
-Run: ``robot-rise bench bus`` (or ``python -m drivers.bench``). 20 XM430-W350 servos with
+Run: ``robot-rise bench bus`` (or ``python -m robot_rise.bench.bus``). 20 XM430-W350 servos with
 return delay 0 and wire timing on. By default the emulator runs in a child process behind a
 pseudo-terminal (:mod:`drivers.mockbus.pty_server`), so its Python work is not host time and
 the host talks to it through the same kernel path as to a USB adapter; ``transport="inprocess"``
@@ -35,12 +35,13 @@ import numpy as np
 from drivers.clock import SPIN_MARGIN_S, MonotonicClock, cpu_wakeup_latency, realtime_scheduling
 from drivers.executor import Executor, ExecutorConfig
 from drivers.group import ServoGroup
+from drivers.pipeline import pipelined_cycles
 from drivers.safety import SafetyLimits
 from drivers.servo_map import BusSpec, ServoMap, ServoSpec
 from drivers.session import Connection, connect, mock_url_for
 from drivers.startup import engage, preflight
 
-__all__ = ["EMULATOR_RT_PRIORITY", "BusBenchResult", "bench_bus", "pipelined_cycles", "host_code_cpu",
+__all__ = ["EMULATOR_RT_PRIORITY", "BusBenchResult", "bench_bus", "host_code_cpu",
            "format_result", "main"]
 
 TRANSPORTS = ("pty", "inprocess")
@@ -120,45 +121,6 @@ def _sequential(group: ServoGroup, q: np.ndarray, cycles: int) -> None:
     for _ in range(cycles):
         group.write_goals(q, defer=True)
         group.read_feedback()
-
-
-def pipelined_cycles(group: ServoGroup, q: np.ndarray, cycles: int) -> int:
-    """``cycles`` goal-write + feedback-read cycles, pipelined; returns the cycles whose
-    feedback was complete.
-
-    Order on the wire is unchanged (request k, reply k, request k+1, ...): only the host's work
-    moves. Goals for cycle k+1 are encoded while reply k is on the wire, request k+1 leaves
-    as soon as reply k is in, and reply k is decoded while request k+1 is on the wire. A failed
-    fast read falls back to :meth:`ServoGroup.read_feedback` (which also re-sends the goals).
-    """
-    complete = 0
-    if not group.pipelinable:
-        for _ in range(cycles):
-            group.write_goals(q, defer=True)
-            complete += int(group.read_feedback().valid.all())
-        return complete
-    group.write_goals(q, defer=True)
-    group.request_fast_feedback()
-    for k in range(cycles):
-        last = k + 1 == cycles
-        if not last:
-            group.write_goals(q, defer=True)  # queued: leaves with the next request
-        raw = group.collect_fast_feedback_raw()
-        sent_next = raw is not None and not last
-        if sent_next:
-            group.request_fast_feedback()
-        fb = group.decode_fast_feedback(raw)
-        if fb is None:  # fall back for this cycle, then restart the pipeline
-            if sent_next:  # half duplex: take the reply already coming before asking again
-                group.collect_fast_feedback_raw()
-            fb = group.read_feedback()
-            if not last and group.pipelinable:
-                group.write_goals(q, defer=True)
-                group.request_fast_feedback()
-            elif not last:
-                return complete + int(fb.valid.all()) + pipelined_cycles(group, q, cycles - k - 1)
-        complete += int(fb.valid.all())
-    return complete
 
 
 def _timed(fn: Callable[[], object], cycles: int, port: object, emulator_cpu: bool) -> tuple[float, float]:
@@ -306,7 +268,7 @@ def format_result(r: BusBenchResult) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints figures
-    p = argparse.ArgumentParser(prog="python -m drivers.bench", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m robot_rise.bench.bus", description=__doc__.split("\n")[0])
     p.add_argument("--baud", type=int, action="append", help="baud rate(s) [bit/s] (default 1 and 4 Mbps)")
     p.add_argument("--cycles", type=int, default=500)
     p.add_argument("--jitter-seconds", type=float, default=3.0)

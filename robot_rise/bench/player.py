@@ -2,7 +2,7 @@
 
 Run with::
 
-    .venv/bin/python -m robot_rise.bench_player [--library DIR] [--repeat N] [--compare DIR]
+    .venv/bin/python -m robot_rise.bench.player [--library DIR] [--repeat N] [--compare DIR]
 
 For each motion of the library (default ``configs/motions/op3``) it plays the motion nominally on
 flat ground (default 3 s hold) ``--repeat`` times with one :class:`robot_rise.sim.Player` and
@@ -12,12 +12,12 @@ bare ``mj_step`` calls with the same controls (no recording, no checks).
 
 ``--compare DIR`` also plays every motion with another copy of the player, ``DIR/sim.py`` (and
 ``DIR/judge.py`` if present, whose functions replace the ones that sim.py imported from
-robot_rise.judge), interleaved with the current one so both see the same machine load, and prints
+robot_rise.sim.standing), interleaved with the current one so both see the same machine load, and prints
 the speed-up. To compare with the last commit::
 
-    mkdir -p /tmp/before && git show HEAD:robot_rise/sim.py > /tmp/before/sim.py \\
-        && git show HEAD:robot_rise/judge.py > /tmp/before/judge.py
-    .venv/bin/python -m robot_rise.bench_player --compare /tmp/before
+    mkdir -p /tmp/before && git show HEAD:robot_rise/sim/player.py > /tmp/before/sim.py \\
+        && git show HEAD:robot_rise/sim/standing.py > /tmp/before/judge.py
+    .venv/bin/python -m robot_rise.bench.player --compare /tmp/before
 
 Single thread. On a shared machine prefer the CPU times, and compare medians of repeated runs.
 """
@@ -38,7 +38,7 @@ import numpy as np
 
 from robot_rise.library import Motion, load_library
 from robot_rise.model import load_robot
-from robot_rise.sim import DEFAULT_HOLD_S, Player
+from robot_rise.sim.player import DEFAULT_HOLD_S, Player
 
 __all__ = ["main", "bench"]
 
@@ -76,8 +76,8 @@ def _load_other(directory: Path) -> ModuleType:
     sim = load("_bench_other_sim", directory / "sim.py")
     if (directory / "judge.py").exists():
         judge = load("_bench_other_judge", directory / "judge.py")
-        for name in dir(sim):  # the functions sim.py imported from robot_rise.judge
-            if getattr(getattr(sim, name), "__module__", None) == "robot_rise.judge" and hasattr(judge, name):
+        for name in dir(sim):  # the functions sim.py imported from robot_rise.sim.standing
+            if getattr(getattr(sim, name), "__module__", None) == "robot_rise.sim.standing" and hasattr(judge, name):
                 setattr(sim, name, getattr(judge, name))
     return sim
 

@@ -20,7 +20,7 @@ from drivers.clock import Clock, MonotonicClock
 from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.mockbus.faults import FaultInjector
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion
-from drivers.mockbus.servo import EmulatedServo
+from drivers.mockbus.emulated_servo import EmulatedServo
 from drivers.protocol import (
     BROADCAST_ID,
     Instruction,

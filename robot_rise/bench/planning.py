@@ -3,7 +3,7 @@
 Same validity checker (robot_rise.validity), same edge checking (our MotionValidator at
 EDGE_RESOLUTION_M, installed into OMPL as its MotionValidator), same smoothing
 (robot_rise.planning.smoothing) and the same problems, read from the frozen problem set
-``configs/bench/planning_problems.json`` (robot_rise.planning.bench_problems):
+``configs/bench/planning_problems.json`` (robot_rise.bench.problems):
 
 - flat60: the paper 000 section 5 protocol, 60 settled lying postures on flat ground (seed 1:
   20 supine, 20 prone, 10 left + 10 right) to the connecting posture ``robot-rise rise``
@@ -19,12 +19,12 @@ clearance (smallest signed distance over the smoothed path).
 
 Run::
 
-    .venv/bin/python -m robot_rise.planning.bench_planning --seed 1 --budget 10 --out out/bench_planning.json
+    .venv/bin/python -m robot_rise.bench.planning --seed 1 --budget 10 --out out/bench_planning.json
 
 ``--regenerate`` samples and selects the problems again (the library may have changed) and
 overwrites ``--problems``. OMPL (the ``ompl`` PyPI package, ``pip install -e '.[bench]'``) is a
 bench-only dependency; without it only ours runs. The OMPL adapter lives in
-robot_rise/planning/ompl_adapter.py (shared with bench_energy.py).
+robot_rise/bench/ompl_adapter.py (shared with bench_energy.py).
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ import numpy as np
 from robot_rise.constants import VERIFY_RESOLUTION_M
 from robot_rise.fileio import write_text_atomic
 from robot_rise.model import load_robot
-from robot_rise.planning.bench_problems import FrozenProblem, build_problem_set, library_digest, load_problem_set, save_problem_set
-from robot_rise.planning.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench_energy)
+from robot_rise.bench.problems import FrozenProblem, build_problem_set, library_digest, load_problem_set, save_problem_set
+from robot_rise.bench.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench_energy)
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult
 from robot_rise.planning.refine import PlannerConfig, RRTBlossomPlanner

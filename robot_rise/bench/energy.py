@@ -25,7 +25,7 @@ Planners, all on the same strict ``ValidityChecker`` (flat scene):
   path segment verified at 5 mm of travel;
 - ``rrt_blossom``: ``RRTBlossomPlanner`` (issue 5); edges at EDGE_RESOLUTION_M (10 mm);
 - ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
-  robot_rise/planning/ompl_adapter.py (the one bench_planning.py uses): our checker as state
+  robot_rise/bench/ompl_adapter.py (the one bench_planning.py uses): our checker as state
   validity, our MotionValidator at EDGE_RESOLUTION_M as OMPL's motion validator;
 - ablations, only when named in ``--planners``. Energy planners (``EnergyParams``):
 
@@ -67,9 +67,9 @@ missing or unknown fields); ``--lying-cache`` freezes the sampled lying60 proble
 
 Run (prints Markdown tables)::
 
-    .venv/bin/python -m robot_rise.planning.bench_energy --sets crossed --n 5 --budget 20 --out out/bench_energy_crossed.json
-    .venv/bin/python -m robot_rise.planning.bench_energy --sets lying60 --budget 10 --lying-cache out/lying60_seed1.json --out out/bench_energy_lying60.json
-    .venv/bin/python -m robot_rise.planning.bench_energy --merge out/bench_energy_crossed.json out/bench_energy_lying60.json
+    .venv/bin/python -m robot_rise.bench.energy --sets crossed --n 5 --budget 20 --out out/bench_energy_crossed.json
+    .venv/bin/python -m robot_rise.bench.energy --sets lying60 --budget 10 --lying-cache out/lying60_seed1.json --out out/bench_energy_lying60.json
+    .venv/bin/python -m robot_rise.bench.energy --merge out/bench_energy_crossed.json out/bench_energy_lying60.json
 """
 
 from __future__ import annotations
@@ -473,7 +473,7 @@ _KEY_POSTURES_S2 = EnergyParams(straighten_limbs=False, dense_output=False, seco
 
 
 def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
-    from robot_rise.planning.ompl_adapter import OmplPlanner, ompl_available
+    from robot_rise.bench.ompl_adapter import OmplPlanner, ompl_available
     from robot_rise.planning.refine import RRTBlossomPlanner
 
     out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [

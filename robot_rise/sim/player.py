@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from robot_rise.errors import RobotRiseError
-from robot_rise.judge import support_margin, zmp_point_mass_many
+from robot_rise.sim.balance import support_margin, zmp_point_mass_many
 from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
 from robot_rise.servo import ServoArrays, servo_arrays
