@@ -9,7 +9,7 @@ This package never imports ``robot_rise``.
 
 from drivers.bus import DynamixelBus, GroupRead, PingResult
 from drivers.clock import Clock, FakeClock, MonotonicClock
-from drivers.control_table import SUPPORTED_MODELS, ControlTable, HardwareError, control_table
+from drivers.control_table import SUPPORTED_MODELS, ControlTable, HardwareErrorBits, control_table
 from drivers.errors import (
     CommunicationError,
     DriverError,
@@ -35,7 +35,7 @@ __all__ = [
     "MonotonicClock",
     "SUPPORTED_MODELS",
     "ControlTable",
-    "HardwareError",
+    "HardwareErrorBits",
     "control_table",
     "CommunicationError",
     "DriverError",

@@ -38,7 +38,7 @@ __all__ = [
     "VOLTAGE_UNIT_V",
     "WATCHDOG_UNIT_S",
     "RETURN_DELAY_UNIT_S",
-    "HardwareError",
+    "HardwareErrorBits",
     "INDIRECT_ADDRESS_1",
     "INDIRECT_DATA_1",
     "INDIRECT_COUNT",
@@ -62,8 +62,8 @@ INDIRECT_DATA_1 = 224  # Indirect Data 1..28 at 224 + k (1 byte each)
 INDIRECT_COUNT = 28
 
 
-class HardwareError:
-    """Bits of the Hardware Error Status register (address 70)."""
+class HardwareErrorBits:
+    """Bits of the Hardware Error Status register (address 70): flags to test, not an exception."""
 
     INPUT_VOLTAGE = 0x01
     OVERHEATING = 0x04

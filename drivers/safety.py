@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.control_table import HardwareError
+from drivers.control_table import HardwareErrorBits
 from drivers.errors import SafetyError
 
 __all__ = [
@@ -313,7 +313,7 @@ def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray, q_pres
                             f"joint {i}: no data for {int(consecutive_failures[i])} consecutive cycles"))
     for i in np.flatnonzero(v & (np.asarray(hardware_error) != 0)):
         bits = int(hardware_error[i])
-        text = "alert bit set" if bits == 0x80 else HardwareError.describe(bits & 0x7F)
+        text = "alert bit set" if bits == 0x80 else HardwareErrorBits.describe(bits & 0x7F)
         faults.append(Fault(FaultKind.HARDWARE, int(i), bits, 0, f"joint {i}: hardware error ({text})"))
     for i in np.flatnonzero(v & (err > limits.max_tracking_error_rad)):
         faults.append(Fault(FaultKind.TRACKING, int(i), float(err[i]), limits.max_tracking_error_rad,

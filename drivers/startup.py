@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.bus import PingResult
-from drivers.control_table import WATCHDOG_UNIT_S, HardwareError, model_for_number
+from drivers.control_table import WATCHDOG_UNIT_S, HardwareErrorBits, model_for_number
 from drivers.errors import CommunicationError, PreflightError, SafetyError, ServoStatusError
 from drivers.group import BUS_WATCHDOG, GOAL_POSITION, TORQUE_ENABLE, ServoGroup
 from drivers.safety import require_inside_limits
@@ -132,7 +132,7 @@ def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = 
         hw = bus.read_value(sid, table["hardware_error_status"])
         if hw:
             hw_errors[sid] = hw
-            _log.warning("servo %d: hardware error at start: %s", sid, HardwareError.describe(hw))
+            _log.warning("servo %d: hardware error at start: %s", sid, HardwareErrorBits.describe(hw))
         want = desired_eeprom(spec, rd_units)
         diffs = []
         for name, value in want.items():
@@ -282,7 +282,7 @@ def recover(group: ServoGroup, ids: list[int], *, attempts: int = 2, boot_wait_s
             try:
                 hw = bus.read_value(sid, table["hardware_error_status"])
                 if hw:
-                    messages.append(f"servo {sid}: still {HardwareError.describe(hw)} after reboot")
+                    messages.append(f"servo {sid}: still {HardwareErrorBits.describe(hw)} after reboot")
                     continue
                 apply_ram_settings(group, [sid])
                 _, data = bus.read(sid, table["present_position"].address, 4)

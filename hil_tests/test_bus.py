@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.control_table import HardwareError
+from drivers.control_table import HardwareErrorBits
 from drivers.errors import ServoStatusError, ServoTimeout
 from drivers.startup import preflight
 from hil_tests.conftest import Rig
@@ -41,11 +41,11 @@ def test_that_group_feedback_is_read_in_radians_with_one_fast_read(rig: Rig) -> 
 
 def test_that_the_alert_bit_of_one_servo_is_surfaced_not_dropped(rig: Rig) -> None:
     preflight(rig.group)
-    rig.mock.faults.hardware_error(7, HardwareError.OVERHEATING)
+    rig.mock.faults.hardware_error(7, HardwareErrorBits.OVERHEATING)
     rig.clock.sleep(0.01)
     fb = rig.group.read_feedback()
     k = rig.group.ids.index(7)
-    assert fb.error_byte[k] & 0x80 and fb.hardware_error[k] == HardwareError.OVERHEATING
+    assert fb.error_byte[k] & 0x80 and fb.hardware_error[k] == HardwareErrorBits.OVERHEATING
     assert fb.alert[k] and fb.valid.sum() == 20
 
 
@@ -212,7 +212,7 @@ def test_that_feedback_without_the_indirect_block_matches_the_indirect_read(rig:
 
     preflight(rig.group)
     rig.mock.plant.set_position(5, 0.4)
-    rig.mock.faults.hardware_error(9, HardwareError.OVERHEATING)
+    rig.mock.faults.hardware_error(9, HardwareErrorBits.OVERHEATING)
     rig.clock.sleep(0.01)
     rig.mock.advance()
     packed = rig.group.read_feedback()
@@ -223,7 +223,7 @@ def test_that_feedback_without_the_indirect_block_matches_the_indirect_read(rig:
     assert reads == [(Instruction.FAST_SYNC_READ, (126, 22)), (Instruction.SYNC_READ, (70, 1))]
     for name in ("position_rad", "velocity_rad_s", "effort_raw", "hardware_error", "temperature_c", "voltage_v"):
         assert np.array_equal(getattr(plain, name), getattr(packed, name)), name
-    assert plain.valid.all() and plain.hardware_error[rig.group.ids.index(9)] == HardwareError.OVERHEATING
+    assert plain.valid.all() and plain.hardware_error[rig.group.ids.index(9)] == HardwareErrorBits.OVERHEATING
 
 
 def test_that_a_servo_group_refuses_a_model_without_the_shared_register_layout(rig: Rig, monkeypatch) -> None:

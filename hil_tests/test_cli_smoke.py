@@ -18,7 +18,7 @@ from drivers.session import mock_url_for
 from robot_rise.cli import main
 from robot_rise.model import Robot, load_robot
 from robot_rise.trajectory import Trajectory, write_trajectory
-from robot_rise.sim.twin import stand_posture
+from robot_rise.posture import stand_posture
 
 
 @pytest.fixture(scope="module")

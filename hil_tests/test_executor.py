@@ -12,7 +12,7 @@ import struct
 import numpy as np
 import pytest
 
-from drivers.control_table import RAD_PER_TICK, HardwareError
+from drivers.control_table import RAD_PER_TICK, HardwareErrorBits
 from drivers.errors import SafetyError
 from drivers.executor import Executor, ExecutorConfig, interpolate
 from drivers.protocol import Instruction
@@ -154,12 +154,12 @@ def test_that_an_unsafe_trajectory_is_clamped_in_limits_and_step(servo_map: Serv
 @pytest.mark.parametrize(
     ("fault", "kind"),
     [
-        (lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD), FaultKind.HARDWARE),
+        (lambda bus: bus.faults.hardware_error(5, HardwareErrorBits.OVERLOAD), FaultKind.HARDWARE),
         (lambda bus: bus.faults.silence(11), FaultKind.COMMUNICATION),
         (lambda bus: setattr(bus.faults, "heating_gain", 3e4), FaultKind.TEMPERATURE),
         (lambda bus: setattr(bus.faults, "input_voltage_v", 9.0), FaultKind.VOLTAGE),
         (lambda bus: setattr(bus.faults, "input_voltage_v", 15.5), FaultKind.VOLTAGE),
-        (lambda bus: bus.faults.hardware_error(14, HardwareError.ELECTRICAL_SHOCK), FaultKind.HARDWARE),
+        (lambda bus: bus.faults.hardware_error(14, HardwareErrorBits.ELECTRICAL_SHOCK), FaultKind.HARDWARE),
         (lambda bus: bus.faults.deaf_ids.add(17), FaultKind.COMMUNICATION),
     ],
     ids=["overload", "silent-servo", "overheating", "undervoltage", "overvoltage", "electrical-shock", "deaf-servo"],
@@ -180,7 +180,7 @@ def test_that_each_fault_stops_the_run_safely_and_is_reported(servo_map: ServoMa
 
 def test_that_recovery_brings_a_shut_down_servo_back_to_holding(servo_map: ServoMap) -> None:
     r = _ready(servo_map)
-    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD))
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareErrorBits.OVERLOAD))
     rep = _run(r)
     assert rep.recovery is not None and rep.recovery.recovered == (5,)
     assert r.mock.servo(5).torque_on
@@ -272,7 +272,7 @@ def test_that_ctrl_c_under_the_limp_policy_ramps_down_and_turns_torque_off(servo
 
 def test_that_recovering_one_servo_does_not_trip_the_others_watchdog(servo_map: ServoMap) -> None:
     r = _ready(servo_map)
-    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareError.OVERLOAD))
+    r.mock.faults.at(r.clock.now() + 0.3, lambda bus: bus.faults.hardware_error(5, HardwareErrorBits.OVERLOAD))
     rep = _run(r, recovery_attempts=2)
     assert rep.recovery is not None and rep.recovery.ok
     r.mock.advance()

@@ -17,7 +17,7 @@ from dynamixel_sdk import (
 
 import drivers.mockbus as mb
 from drivers.clock import FakeClock
-from drivers.control_table import HardwareError
+from drivers.control_table import HardwareErrorBits
 from drivers.protocol import (
     ALERT_BIT,
     BROADCAST_ID,
@@ -85,10 +85,10 @@ def test_that_indirect_data_reads_the_mapped_registers() -> None:
 def test_that_hardware_error_sets_the_alert_bit_and_shutdown_drops_torque() -> None:
     bus = _bus()
     _ask(bus, 3, Instruction.WRITE, write_params(64, b"\x01"))
-    bus.faults.hardware_error(3, HardwareError.OVERLOAD)
+    bus.faults.hardware_error(3, HardwareErrorBits.OVERLOAD)
     bus.clock.sleep(0.01)  # type: ignore[attr-defined]
     (p,) = _ask(bus, 3, Instruction.READ, read_params(70, 1))
-    assert p.error & ALERT_BIT and p.data == bytes([HardwareError.OVERLOAD])
+    assert p.error & ALERT_BIT and p.data == bytes([HardwareErrorBits.OVERLOAD])
     assert not bus.servo(3).torque_on
     (p,) = _ask(bus, 3, Instruction.WRITE, write_params(64, b"\x01"))
     assert p.error & 0x7F == StatusError.RESULT_FAIL
@@ -97,7 +97,7 @@ def test_that_hardware_error_sets_the_alert_bit_and_shutdown_drops_torque() -> N
 def test_that_reboot_clears_the_error_and_keeps_eeprom() -> None:
     bus = _bus(boot_time_s=0.05)
     _ask(bus, 1, Instruction.WRITE, write_params(9, b"\x07"))
-    bus.faults.hardware_error(1, HardwareError.OVERLOAD)
+    bus.faults.hardware_error(1, HardwareErrorBits.OVERLOAD)
     bus.clock.sleep(0.01)  # type: ignore[attr-defined]
     _ask(bus, 1, Instruction.REBOOT)
     assert _ask(bus, 1, Instruction.PING) == []  # still booting

@@ -7,7 +7,7 @@ import struct
 import numpy as np
 import pytest
 
-from drivers.control_table import HardwareError
+from drivers.control_table import HardwareErrorBits
 from drivers.errors import PreflightError, SafetyError
 from drivers.protocol import Instruction
 from drivers.safety import LIMIT_TOLERANCE_RAD
@@ -56,7 +56,7 @@ def test_that_engage_sets_goal_to_present_before_torque_on(servo_map: ServoMap) 
 def test_that_recovery_reboots_a_shut_down_servo_and_holds_it(rig: Rig) -> None:
     preflight(rig.group)
     engage(rig.group)
-    rig.mock.faults.hardware_error(6, HardwareError.OVERLOAD)
+    rig.mock.faults.hardware_error(6, HardwareErrorBits.OVERLOAD)
     rig.clock.sleep(0.01)
     rig.mock.advance()
     assert not rig.mock.servo(6).torque_on

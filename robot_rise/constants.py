@@ -72,7 +72,7 @@ ROOT_ANGULAR_SPEED_LIMIT_RAD_S = 2.0
 ROOT_ACCEL_LIMIT_M_S2 = 1.0
 ROOT_ANGULAR_ACCEL_LIMIT_RAD_S2 = 6.0
 
-# --- Energy-driven planner (robot_rise/planning/energy.py, issue 7; paper 004) ---------------------
+# --- Energy-driven planner (robot_rise/planning/energy/, issue 7; paper 004) ---------------------
 ENERGY_FALLOFF_D = 3  # fall-off exponent d of eq. (1); paper: d between 2 and 5 (004 sections 7.2, 8)
 ENERGY_EXTERNAL_EXPONENT = 2  # exponent of the external term, eq. (2)
 ENERGY_CONSTRAINT_GAMMA = 0.01  # gamma of eq. (10)-(11), "0.01 for all our experiments" (004 section 6.1)

@@ -25,6 +25,7 @@ from robot_rise.fileio import write_text_atomic
 from robot_rise.model import ModelIndex, Robot
 
 __all__ = [
+    "stand_posture",
     "Posture",
     "POSTURE_FORMAT",
     "posture_from_dict",
@@ -122,6 +123,12 @@ def posture_from_qpos(robot: Robot, index: ModelIndex, qpos: np.ndarray) -> Post
         root_quat_wxyz=np.array(qpos[index.qpos_root[3:]]),
         joints=dict(zip(robot.joint_names, (float(x) for x in qpos[index.qpos_joints]))),
     )
+
+
+def stand_posture(robot: Robot) -> Posture:
+    """The robot's ``stand`` keyframe as a :class:`Posture` (root pose as the keyframe has it)."""
+    q = robot.stand_qpos
+    return Posture(robot.name, np.asarray(q[:3]), np.asarray(q[3:7]), dict(zip(robot.joint_names, q[7:])))
 
 
 def posture_to_dict(p: Posture) -> dict[str, Any]:

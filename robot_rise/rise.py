@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import ROBUSTNESS_CHECKS, FilterResult, FilterSettings, ModelError, dynamics_filter, join_with_blend, prove, stands_under
+from robot_rise.filter import ROBUSTNESS_VARIANTS, FilterConfig, FilterResult, ModelVariant, Proof, dynamics_filter, join_with_blend, prove, stands_under
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
 from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room, place_near
@@ -81,13 +81,28 @@ class RiseAttempt:
 
 @dataclass(frozen=True)
 class RiseResult:
-    """Outcome of :func:`rise`. ``trajectory`` is set whenever a motion was filtered (even unproven)."""
+    """Outcome of :func:`rise`. ``trajectory`` is set whenever a motion was filtered (even unproven).
 
-    ok: bool
+    Attributes:
+        proven: the trajectory stands, proven by the filter's replay (its ``proof``).
+        trajectory: the servo targets from the start posture (None when nothing was filtered).
+        attempts: every candidate tried, in order, with what became of it.
+        reason: why not proven (empty when proven).
+        filter_result: the filter's evidence for the returned trajectory.
+    """
+
+    proven: bool
     trajectory: Trajectory | None
     attempts: tuple[RiseAttempt, ...]
     reason: str = ""
     filter_result: FilterResult | None = None
+
+    @property
+    def proof(self) -> Proof | None:
+        """The proof written in the trajectory's report (None when nothing was filtered)."""
+        if self.trajectory is None or "proven" not in self.trajectory.report:
+            return None
+        return Proof.from_dict(self.trajectory.report)
 
 
 @dataclass
@@ -116,7 +131,7 @@ class RiseContext:
     @classmethod
     def build(cls, robot: Robot, scene: str | os.PathLike[str] | None = "flat", library: MotionLibrary | None = None) -> RiseContext:
         library = library or load_library(robot_name=robot.library)
-        index = lying_frames(library.frame_index(robot), library)
+        index = lying_frames(FrameIndex.build(library, robot), library)
         return cls(robot, scene, ValidityChecker(robot, scene), library, index, KMeansTree(index))
 
 
@@ -150,7 +165,7 @@ def connection_candidates(
     The very nearest comes from the K-means tree (paper 000 section 4.1); the runners-up per
     motion from the same frame index.
     """
-    index = index or library.frame_index(robot)
+    index = index or FrameIndex.build(library, robot)
     tree = tree or KMeansTree(index)
     joints = start.joint_vector(robot.joint_names)
     best = tree.query(start.root_quat_wxyz, joints)
@@ -254,11 +269,11 @@ def rise(
     budget_s: float = 30.0,
     library: MotionLibrary | None = None,
     candidates: int = DEFAULT_CANDIDATES,
-    settings: FilterSettings = FilterSettings(),
+    filter_config: FilterConfig = FilterConfig(),
     progress: Callable[[str], None] | None = None,
     context: RiseContext | None = None,
     retries: int = DEFAULT_RETRIES,
-    robustness: tuple[ModelError, ...] = ROBUSTNESS_CHECKS,
+    robustness: tuple[ModelVariant, ...] = ROBUSTNESS_VARIANTS,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -271,10 +286,10 @@ def rise(
         budget_s: planning budget per candidate [s].
         library: motion library (default: the robot's shipped library).
         candidates: how many library motions to try, nearest first.
-        settings: dynamics filter settings.
+        filter_config: dynamics filter tuning.
         progress: called with a short stage description.
         context: prebuilt checker/library/index for this robot and scene (reuse across rises).
-        robustness: model errors every proven candidate is replayed under; the first candidate
+        robustness: model variants every proven candidate is replayed under; the first candidate
             that still stands under all of them is returned, else the first proven one (its
             report's ``robustness`` says which check it failed).
         retries: when every candidate fails but the robot ends lying at rest, rise again from
@@ -326,7 +341,7 @@ def rise(
             continue
         say(f"filtering {conn.motion} in MuJoCo")
         motion = library.get(conn.motion)
-        commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=settings.blend_s)
+        commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=filter_config.blend_s)
         commanded = commanded.with_report(
             **planned.trajectory.report,
             motion=conn.motion,
@@ -335,15 +350,15 @@ def rise(
             plan_duration_s=planned.trajectory.duration_s,
             plan_rows=len(planned.trajectory.t),
         )
-        result = dynamics_filter(robot, commanded, scene=scene, settings=settings, start=start)
+        result = dynamics_filter(robot, commanded, scene=scene, config=filter_config, start=start)
         t2 = time.monotonic()
         robust: dict[str, bool] = {}
-        if result.ok:
+        if result.proven:
             say("checking robustness to model errors")
-            robust = {e.label: stands_under(robot, result.trajectory, e, scene=scene, settings=settings, start=start) for e in robustness}
+            robust = {v.label: stands_under(robot, result.trajectory, v, scene=scene, config=filter_config, start=start) for v in robustness}
         t3 = time.monotonic()
         attempt = RiseAttempt(
-            conn.motion, conn.frame, conn.distance, True, proven=result.ok, filter_reason=result.reason,
+            conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
             seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()),
         )
         attempts.append(attempt)
@@ -352,7 +367,7 @@ def rise(
             "seconds": attempt.seconds,
             "robustness": robust,
         }
-        if result.ok:
+        if result.proven:
             tr = result.trajectory.with_report(**extra)
             if all(robust.values()):
                 return RiseResult(True, tr, tuple(attempts), "", result)
@@ -367,7 +382,7 @@ def rise(
     if retries > 0 and best_unproven is not None:
         recovered = _rise_again_from_where_it_fell(
             robot, best_unproven, scene=scene, seed=seed, budget_s=budget_s, candidates=candidates,
-            settings=settings, progress=progress, context=context, retries=retries - 1,
+            filter_config=filter_config, progress=progress, context=context, retries=retries - 1,
         )
         if recovered is not None:
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
@@ -383,7 +398,7 @@ def _rise_again_from_where_it_fell(
     seed: int,
     budget_s: float,
     candidates: int,
-    settings: FilterSettings,
+    filter_config: FilterConfig,
     progress: Callable[[str], None] | None,
     context: RiseContext,
     retries: int,
@@ -405,22 +420,23 @@ def _rise_again_from_where_it_fell(
         return None
     log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
     again = rise(
-        robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, settings=settings,
+        robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, filter_config=filter_config,
         progress=progress, context=context, retries=retries,
     )
-    if not again.ok or again.trajectory is None:
+    if not again.proven or again.trajectory is None:
         return None
     first = failed.trajectory
-    held_until = first.duration_s + settings.hold_s
+    held_until = first.duration_s + filter_config.hold_s
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
-    combined = join_with_blend(stage1, again.trajectory, 0, blend_s=settings.blend_s)
-    _, verdict, report = prove(robot, combined, scene=scene, settings=settings, player=None, start=first.start)
-    if not report["proven"]:
-        log.info("combined recovery not proven on replay: %s", report["problems"])
+    combined = join_with_blend(stage1, again.trajectory, 0, blend_s=filter_config.blend_s)
+    _, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=None, start=first.start)
+    if not proof.proven:
+        log.info("combined recovery not proven on replay: %s", list(proof.problems))
         return None
+    entries = proof.to_dict()  # the combined motion's proof replaces the second rise's
     tr = combined.with_report(
-        **{k: v for k, v in again.trajectory.report.items() if k not in report},
-        **report,
+        **{k: v for k, v in again.trajectory.report.items() if k not in entries},
+        **entries,
         recovery={"first_attempt_until_s": held_until, "first_attempt": failed.reason, "then": again.trajectory.report.get("motion")},
     )
     return RiseResult(True, tr, again.attempts, "", again.filter_result)

@@ -35,6 +35,7 @@ __all__ = [
     "LyingKind",
     "LYING_KINDS",
     "SampleResult",
+    "sample_lying",
     "sample_lying_postures",
     "classify_lying",
     "settle",
@@ -149,7 +150,7 @@ class SampleResult:
     discarded: dict[str, int] = field(default_factory=dict)
 
 
-def sample_lying_postures(
+def sample_lying(
     robot: Robot,
     kind: LyingKind | Literal["any"],
     n: int,
@@ -237,3 +238,21 @@ def sample_lying_postures(
         )
     log.info("sampled %d %s postures in %d attempts; discarded %s", n, kind, attempt, dict(discarded))
     return SampleResult(tuple(postures), tuple(kinds), attempt, dict(discarded))
+
+
+def sample_lying_postures(
+    robot: Robot,
+    kind: LyingKind | Literal["any"],
+    n: int,
+    *,
+    seed: int,
+    scene: str | os.PathLike[str] | None = "flat",
+) -> list[Posture]:
+    """``n`` settled lying postures of a kind (the public face of :func:`sample_lying`, which also
+    says why attempts were discarded).
+
+    Raises:
+        RobotRiseError: fewer than n postures came to rest (names the discard reasons).
+    """
+    return list(sample_lying(robot, kind, n, seed, scene=scene).postures)
+

@@ -13,6 +13,7 @@ angles in radians.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -184,9 +185,11 @@ def write_trajectory(path: str | os.PathLike[str], tr: Trajectory) -> None:
 
 
 def write_csv(path: str | os.PathLike[str], tr: Trajectory) -> None:
-    """Export t and q as CSV (header: t, joint names), for spreadsheets and plotting tools."""
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["t", *tr.joint_names])
-        for ti, row in zip(tr.t, tr.q):
-            w.writerow([f"{ti:.6f}", *(f"{x:.6f}" for x in row)])
+    """Export t [s] and q [rad] as CSV (header: t, joint names), for spreadsheets and plotting
+    tools; written atomically like every file of ours (temporary file, then rename)."""
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["t", *tr.joint_names])
+    for ti, row in zip(tr.t, tr.q):
+        w.writerow([f"{ti:.6f}", *(f"{x:.6f}" for x in row)])
+    write_text_atomic(path, buf.getvalue())

@@ -1,4 +1,4 @@
-"""Tests of robot_rise.planning.capsules: exact segment distances and the robot as capsules."""
+"""Tests of robot_rise.planning.energy.capsules: exact segment distances and the robot as capsules."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 from scipy.optimize import minimize
 
 from robot_rise.model import compose, load_robot, model_index
-from robot_rise.planning import capsules
-from robot_rise.planning.capsules import (
+from robot_rise.planning.energy import capsules
+from robot_rise.planning.energy.capsules import (
     ground_halfspaces,
     non_adjacent_pairs,
     robot_capsules,

@@ -1,4 +1,4 @@
-"""Tests of robot_rise.planning.energy: repulsive energy, gradient, Algorithms 1-2, local minima."""
+"""Tests of the robot_rise.planning.energy package: repulsive energy, gradient, Algorithms 1-2, local minima, refinement."""
 
 from __future__ import annotations
 
@@ -10,22 +10,26 @@ import mujoco
 import numpy as np
 import pytest
 
-from robot_rise.constants import ENERGY_LOCAL_MINIMUM_PATIENCE
+from robot_rise.constants import ENERGY_LOCAL_MINIMUM_PATIENCE, OUTPUT_SPACING_RAD
 from robot_rise.model import load_robot
 from robot_rise.planning import energy as energy_module
 from robot_rise.bench.energy import crossed_problems, straight_motion_is_illegal
 from robot_rise.planning.energy import (
-    EnergyParams,
+    EnergyConfig,
     EnergyPlanner,
     EnergyWindow,
     PositionalConstraint,
     RepulsiveEnergy,
     energy_interpolate,
     plan_energy,
-    segment_is_valid,
     tangent_difference,
     tangent_step,
 )
+from robot_rise.planning.energy import constraints as energy_constraints
+from robot_rise.planning.energy import dense as energy_dense
+from robot_rise.planning.energy import planner as energy_planner
+from robot_rise.planning.energy.gli import GliMatrix, gli_difference
+from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
 from robot_rise.validity import ValidityChecker
 
@@ -58,7 +62,7 @@ def test_that_every_name_in_all_resolves():
 @pytest.mark.parametrize("falloff_d", [2, 3, 5])
 def test_that_the_analytic_gradient_matches_finite_differences(setup, falloff_d):
     robot, checker, _ = setup
-    energy = RepulsiveEnergy(checker, EnergyParams(falloff_d=falloff_d))
+    energy = RepulsiveEnergy(checker, EnergyConfig(falloff_d=falloff_d))
     m = checker.model
     for seed in range(3):
         q = _stand(robot, checker, jitter=0.3, seed=seed)
@@ -136,8 +140,7 @@ def test_that_the_energy_planner_solves_the_crossed_limb_problems_with_a_legal_p
     q = result.path.qpos(checker)
     assert np.allclose(q[0], checker.qpos_of(p.start))
     assert np.allclose(q[-1], checker.qpos_of(p.goal), atol=1e-9)
-    for a, b in zip(q[:-1], q[1:]):
-        assert segment_is_valid(checker, a, b, resolution_m=0.005)
+    assert _legal_path(checker, q)
 
 
 def test_that_the_planner_object_and_function_agree_and_are_deterministic(setup, problems):
@@ -240,19 +243,30 @@ def test_that_tangent_difference_and_step_are_inverse(setup):
     assert np.allclose(tangent_step(checker.model, a, v), b, atol=1e-9)
 
 
+def test_that_the_shared_segment_checker_checks_both_ends_of_a_qpos_segment(setup, problems):
+    robot, checker, _ = setup
+    good = checker.qpos_of(problems["crossed_arms"].start)  # supine, resting 0.5 mm above the ground
+    sunk = good.copy()
+    sunk[checker.index.qpos_root[2]] -= 0.006  # through the 2 mm tolerance
+    assert not checker.is_valid_qpos(sunk)
+    validator = MotionValidator.for_checker(checker, 0.005)
+    assert validator.qpos_segment_valid(good, good)
+    assert not validator.qpos_segment_valid(sunk, good) and not validator.qpos_segment_valid(good, sunk)
+
+
 def test_that_ground_contact_rows_stop_a_step_that_would_sink_a_resting_robot(setup, problems):
     robot, checker, energy = setup
     q = checker.qpos_of(problems["crossed_arms"].start)  # supine, resting 0.5 mm above the ground
-    p = EnergyParams()
-    scale = energy_module._tangent_scale(checker, p.root_translation_scale_m)
+    p = EnergyConfig()
+    scale = energy_module.tangent_scale(checker, p.root_translation_scale_m)
     v = np.zeros(checker.model.nv)
     v[checker.index.qvel_root[2]] = -0.006  # straight down by 6 mm: through the 2 mm tolerance
     assert not checker.is_valid_qpos(tangent_step(checker.model, q, v))
     K, C = energy.ground_contact_rows(q, v, energy_module.GROUND_CONTACT_ZONE_M)
     assert K.shape[0] > 0 and K.shape == (len(C), checker.model.nv)
     empty = (np.zeros((0, checker.model.nv)), np.zeros(0))
-    Ks, Cs = energy_module._with_ground_contacts(energy, q, v * scale, *empty, np.zeros(checker.model.nv), scale, p)
-    dy = energy_module._project_constraints(v * scale, Ks, Cs, np.zeros(checker.model.nv), p)
+    Ks, Cs = energy_constraints.with_ground_contacts(energy, q, v * scale, *empty, np.zeros(checker.model.nv), scale, p)
+    dy = energy_constraints.project_constraints(v * scale, Ks, Cs, np.zeros(checker.model.nv), p)
     q_new = tangent_step(checker.model, q, dy / scale)
     qj = checker.index.qpos_joints  # the planner's hard joint bound (eq. 13) after every step
     q_new[qj] = np.clip(q_new[qj], robot.joint_lower, robot.joint_upper)
@@ -268,14 +282,14 @@ def test_that_the_safe_zone_key_postures_keep_the_ends_and_a_legal_path(setup, p
     p = problems["crossed_legs"]
     raw = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), energy=energy, budget_s=30.0)
     assert raw.status is PlanStatus.EXACT_SOLUTION, raw.reason
-    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
+    gli = GliMatrix(robot, checker.model, checker.index)
     keys = energy_module.safe_zone_keyframes(checker, raw.qpos, gli)
     assert 2 <= len(keys) < len(raw.qpos)
     assert np.array_equal(keys[0], raw.qpos[0]) and np.array_equal(keys[-1], raw.qpos[-1])
     assert all(any(np.array_equal(k, r) for r in raw.qpos) for k in keys)  # a subsequence of the raw path
+    assert _legal_path(checker, keys)
     for a, b in zip(keys[:-1], keys[1:]):
-        assert segment_is_valid(checker, a, b, resolution_m=0.005)
-        assert energy_module.gli_difference(gli(a), gli(b)) < 0.3  # eq. (8): one safe subspace
+        assert gli_difference(gli(a), gli(b)) < 0.3  # eq. (8): one safe subspace
 
 
 def test_that_the_safe_zone_joins_two_nearby_postures_with_one_straight_motion(setup):
@@ -286,25 +300,25 @@ def test_that_the_safe_zone_joins_two_nearby_postures_with_one_straight_motion(s
     q0[checker.index.qpos_root[2]] += 0.05
     q1 = q0.copy()
     q1[checker.index.qpos_joints[robot.joint_index("r_sho_pitch")]] += 0.3
-    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
-    assert energy_module.gli_difference(gli(q0), gli(q1)) < 0.3
+    gli = GliMatrix(robot, checker.model, checker.index)
+    assert gli_difference(gli(q0), gli(q1)) < 0.3
     safe = energy_interpolate(checker, q0, q1, energy=energy, budget_s=10.0)
-    walk = energy_interpolate(checker, q0, q1, params=EnergyParams(use_safe_zone=False), energy=energy, budget_s=10.0)
+    walk = energy_interpolate(checker, q0, q1, params=EnergyConfig(use_safe_zone=False), energy=energy, budget_s=10.0)
     assert safe.status is PlanStatus.EXACT_SOLUTION and walk.status is PlanStatus.EXACT_SOLUTION
     assert len(safe.qpos) == 2 and safe.stats["iterations"] == 1
-    assert len(walk.qpos) >= 0.3 / EnergyParams().step_rad - 1
+    assert len(walk.qpos) >= 0.3 / EnergyConfig().step_rad - 1
 
 
 def test_that_the_crossed_legs_ends_are_outside_one_safe_subspace(setup, problems):
     robot, checker, _ = setup
     p = problems["crossed_legs"]
-    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
+    gli = GliMatrix(robot, checker.model, checker.index)
     # the legs' linkages wind the other way round: eq. (8) must see it (threshold 0.3)
-    assert energy_module.gli_difference(gli(checker.qpos_of(p.start)), gli(checker.qpos_of(p.goal))) >= 0.3
+    assert gli_difference(gli(checker.qpos_of(p.start)), gli(checker.qpos_of(p.goal))) >= 0.3
 
 
 def _key_path(checker, p):
-    out = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0), params=EnergyParams(second_stage=None))
+    out = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0), params=EnergyConfig(second_stage=None))
     assert out.solved, out.reason
     return out.path.qpos(checker)
 
@@ -315,7 +329,7 @@ def test_that_resampling_keeps_the_vertices_and_bounds_the_spacing(setup, proble
     dense = energy_module.resample_path(checker, keys, 0.05)
     assert len(dense) > len(keys)
     assert all(any(np.allclose(k, r) for r in dense) for k in keys)
-    scale = energy_module._tangent_scale(checker)
+    scale = energy_module.tangent_scale(checker)
     steps = [float(np.linalg.norm(scale * tangent_difference(checker.model, a, b))) for a, b in zip(dense[:-1], dense[1:])]
     assert max(steps) <= 0.05 + 1e-9
 
@@ -328,11 +342,11 @@ def test_that_the_second_stage_smooths_the_motion_and_keeps_it_legal(setup, prob
     out = energy_module.second_stage(checker, keys, stats=stats)
     assert np.array_equal(out[0], keys[0]) and np.array_equal(out[-1], keys[-1])
     assert all(checker.is_valid_qpos(q) for q in out)
-    assert all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(out[:-1], out[1:]))
+    assert _legal_path(checker, out)
     assert np.all(out[:, checker.index.qpos_joints] >= robot.joint_lower - 1e-9)
     assert np.all(out[:, checker.index.qpos_joints] <= robot.joint_upper + 1e-9)
     # the corners of the key-posture polyline are rounded: the trajectory Laplacian falls by half or more
-    spacing = energy_module.SecondStageParams().frame_spacing_rad
+    spacing = energy_module.SecondStageConfig().frame_spacing_rad
     before = energy_module.trajectory_laplacian_energy(checker, energy_module.resample_path(checker, keys, spacing))
     after = energy_module.trajectory_laplacian_energy(checker, out)
     assert stats["laplacian_before"] == pytest.approx(before)
@@ -342,7 +356,7 @@ def test_that_the_second_stage_smooths_the_motion_and_keeps_it_legal(setup, prob
 def test_that_the_second_stage_reduces_the_linear_momentum_deviation(setup, problems):
     robot, checker, _ = setup
     keys = _key_path(checker, problems["crossed_legs"])
-    sp = energy_module.SecondStageParams
+    sp = energy_module.SecondStageConfig
 
     def com_second_difference(path):  # eq. (18) at equal time steps: sum |c_(t-1) - 2 c_t + c_(t+1)|^2
         m, d = checker.model, mujoco.MjData(checker.model)
@@ -380,7 +394,7 @@ def test_that_the_second_stage_keeps_a_frame_whose_change_the_checker_refuses(se
     dense = energy_module.resample_path(checker, keys, 0.1)
     # only the frames themselves are "legal" (segment checks need their interior too: allow the
     # straight motions' check postures by taking the refusing checker only for frames)
-    params = energy_module.SecondStageParams(frame_spacing_rad=0.1, iterations=3)
+    params = energy_module.SecondStageConfig(frame_spacing_rad=0.1, iterations=3)
     refusing = _RefuseNewPostures(checker, dense)
     stats: dict = {}
     out = energy_module.second_stage(refusing, dense, params=params, stats=stats, resolution_m=1.0)
@@ -389,7 +403,7 @@ def test_that_the_second_stage_keeps_a_frame_whose_change_the_checker_refuses(se
 
 
 def _unstraightened_keys(checker, p):
-    out = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0), params=EnergyParams(second_stage=None, straighten_limbs=False))
+    out = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0), params=EnergyConfig(second_stage=None, straighten_limbs=False))
     assert out.solved, out.reason
     return out.path.qpos(checker)
 
@@ -413,7 +427,7 @@ def test_that_straightening_stops_the_legs_moving_for_the_crossed_arms_and_keeps
     assert out.shape == keys.shape
     assert np.array_equal(out[0], keys[0]) and np.array_equal(out[-1], keys[-1])
     assert all(checker.is_valid_qpos(q) for q in out)
-    assert all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(out[:-1], out[1:]))
+    assert _legal_path(checker, out)
     assert {"root", "left_leg", "right_leg"} <= set(stats["straightened"])
     assert _limb_excursion(checker, out, "left_leg") < 1e-9 and _limb_excursion(checker, out, "right_leg") < 1e-9
     # the arms cannot both move straight: that is the penetrating straight motion of the problem
@@ -436,9 +450,9 @@ def test_that_the_default_planner_straightens_and_writes_its_motion_densely(setu
     assert "left_leg" in leg["straightened"] and leg["second_stage"]["output"] in ("polyline", "bspline")
     q = result.path.qpos(checker)
     assert _limb_excursion(checker, q, "left_leg") < 1e-9
-    scale = energy_module._tangent_scale(checker)
+    scale = energy_module.tangent_scale(checker)
     steps = [float(np.linalg.norm(scale * tangent_difference(checker.model, a, b))) for a, b in zip(q[:-1], q[1:])]
-    assert max(steps) <= energy_module.OUTPUT_SPACING_RAD * 1.5  # the B-spline's samples: near the spacing
+    assert max(steps) <= OUTPUT_SPACING_RAD * 1.5  # the B-spline's samples: near the spacing
 
 
 def test_that_the_dense_output_is_legal_dense_and_no_rougher_than_the_polyline(setup, problems):
@@ -448,9 +462,9 @@ def test_that_the_dense_output_is_legal_dense_and_no_rougher_than_the_polyline(s
     out = energy_module.dense_output(checker, frames, stats=stats)
     assert np.array_equal(out[0], frames[0]) and np.array_equal(out[-1], frames[-1])
     assert len(out) >= 4 * len(frames) and stats["output_frames"] == len(out)
-    assert all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(out[:-1], out[1:]))
-    poly = energy_module.resample_path(checker, frames, energy_module.OUTPUT_SPACING_RAD)
-    assert energy_module._timed_roughness(checker, out) <= energy_module._timed_roughness(checker, poly)
+    assert _legal_path(checker, out)
+    poly = energy_module.resample_path(checker, frames, OUTPUT_SPACING_RAD)
+    assert energy_dense._timed_roughness(checker, out) <= energy_dense._timed_roughness(checker, poly)
     # on crossed arms the B-spline is legal and times smoother than the frames' polyline (which
     # bends at every frame): measured 2026-12-01, J x D^5 lower
     assert stats["output"] == "bspline"
@@ -459,7 +473,7 @@ def test_that_the_dense_output_is_legal_dense_and_no_rougher_than_the_polyline(s
 def test_that_the_dense_output_falls_back_to_the_polyline_when_the_curve_is_refused(setup, problems):
     robot, checker, _ = setup
     frames = energy_module.second_stage(checker, _key_path(checker, problems["crossed_arms"]))
-    poly = energy_module.resample_path(checker, frames, energy_module.OUTPUT_SPACING_RAD)
+    poly = energy_module.resample_path(checker, frames, OUTPUT_SPACING_RAD)
     stats: dict = {}
     out = energy_module.dense_output(_RefuseNewPostures(checker, poly), frames, stats=stats, resolution_m=1.0)
     assert stats["output"] == "polyline" and np.allclose(out, poly)
@@ -507,7 +521,7 @@ def test_that_the_energy_window_fires_on_real_planner_iterations_with_a_short_pa
     a, b = checker.qpos_of(p.start), checker.qpos_of(p.goal)
     # section 8 fed by the planner itself (no monkeypatching): with a patience of 1, the first
     # iteration that neither lowers the window nor brings the ends closer is a "local minimum"
-    short = energy_interpolate(checker, a, b, params=EnergyParams(patience=1), energy=energy, budget_s=30.0)
+    short = energy_interpolate(checker, a, b, params=EnergyConfig(patience=1), energy=energy, budget_s=30.0)
     assert short.status is PlanStatus.FAILED
     assert "local minimum (paper 004 section 8)" in short.reason and "for 1 iterations" in short.reason
     full = energy_interpolate(checker, a, b, energy=energy, budget_s=30.0)  # the paper's 50 iterations
@@ -560,7 +574,7 @@ def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the
         assert k.keyframes and k.second_stage is None and not k.straighten_limbs, name
     for name in ("energy_s2", "energy_s2_noshortcut", "energy_s2_oldsmooth", "energy_s2_abc"):  # + the second stage alone
         s2 = planners[name].params
-        assert s2.keyframes and s2.second_stage == energy_module.SecondStageParams() and not s2.straighten_limbs and not s2.dense_output, name
+        assert s2.keyframes and s2.second_stage == energy_module.SecondStageConfig() and not s2.straighten_limbs and not s2.dense_output, name
     raw = planners["energy_raw"].params
     assert not raw.keyframes and raw.second_stage is None and not raw.straighten_limbs
 
@@ -585,7 +599,9 @@ def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_pl
 
 
 def _legal_path(checker, q):
-    return all(segment_is_valid(checker, a, b, resolution_m=0.005) for a, b in zip(q[:-1], q[1:]))
+    """Every straight segment of the qpos rows legal at 5 mm (the planner's own segment checker)."""
+    validator = MotionValidator.for_checker(checker, 0.005)
+    return all(validator.qpos_segment_valid(a, b) for a, b in zip(q[:-1], q[1:]))
 
 
 def test_that_the_second_stage_stops_between_iterations_once_its_deadline_has_passed(setup, problems):
@@ -594,7 +610,7 @@ def test_that_the_second_stage_stops_between_iterations_once_its_deadline_has_pa
     stats: dict = {}
     out = energy_module.second_stage(checker, keys, deadline=time.monotonic() - 1.0, stats=stats)
     assert stats["stopped_on_budget"] and stats["iterations"] == 0
-    assert np.array_equal(out, energy_module.resample_path(checker, keys, energy_module.SecondStageParams().frame_spacing_rad))
+    assert np.array_equal(out, energy_module.resample_path(checker, keys, energy_module.SecondStageConfig().frame_spacing_rad))
     assert _legal_path(checker, out)
     free: dict = {}
     energy_module.second_stage(checker, keys, deadline=time.monotonic() + 60.0, stats=free)
@@ -606,7 +622,7 @@ def test_that_each_refinement_step_keeps_a_legal_motion_when_its_deadline_has_pa
     p = problems["crossed_arms"]
     raw = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), budget_s=30.0)
     assert raw.status is PlanStatus.EXACT_SOLUTION
-    gli = energy_module.GliMatrix(robot, checker.model, checker.index)
+    gli = GliMatrix(robot, checker.model, checker.index)
     gone = time.monotonic() - 1.0
     s: dict = {}
     keys = energy_module.safe_zone_keyframes(checker, raw.qpos, gli, deadline=gone, stats=s)
@@ -629,7 +645,7 @@ def test_that_the_planner_keeps_a_tiny_budget_and_returns_a_legal_path(setup, pr
     # timed is the refinement after it, which used to run to the end whatever the budget
     first = energy_interpolate(checker, checker.qpos_of(p.start), checker.qpos_of(p.goal), budget_s=30.0)
     assert first.status is PlanStatus.EXACT_SOLUTION
-    monkeypatch.setattr(energy_module, "energy_interpolate", lambda *a, **k: dataclasses.replace(first, stats=dict(first.stats)))
+    monkeypatch.setattr(energy_planner, "energy_interpolate", lambda *a, **k: dataclasses.replace(first, stats=dict(first.stats)))
     plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=30.0))  # warm-up: first imports (scipy.sparse) are not the planner's
     t0 = time.monotonic()
     result = plan_energy(PlanningProblem(p.start, p.goal, checker, budget_s=budget_s))
@@ -664,16 +680,20 @@ def test_that_the_planner_numbers_live_in_robot_rise_constants():
 
     from robot_rise import constants as c
 
-    sp = energy_module.SecondStageParams()
+    sp = energy_module.SecondStageConfig()
     assert (sp.iterations, sp.frame_spacing_rad, sp.w_lap, sp.w_lm, sp.halvings, sp.tolerance_rad) == (
         c.SECOND_STAGE_ITERATIONS, c.SECOND_STAGE_FRAME_SPACING_RAD, c.SECOND_STAGE_W_LAP, c.SECOND_STAGE_W_LM,
         c.SECOND_STAGE_HALVINGS, c.SECOND_STAGE_TOLERANCE_RAD)
-    ep = EnergyParams()
+    ep = EnergyConfig()
     assert (ep.external_weight, ep.max_iterations) == (c.ENERGY_EXTERNAL_WEIGHT, c.ENERGY_MAX_ITERATIONS)
     assert energy_module.FALLOFF_RETRY_SCHEDULE == c.FALLOFF_RETRY_SCHEDULE
     assert energy_module.GROUND_CONTACT_ZONE_M == c.GROUND_CONTACT_ZONE_M
-    # no module-level number of its own in energy.py (one config place, with the paper beside it)
-    tree = ast.parse(Path(energy_module.__file__).read_text())
-    own = [t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
-           if isinstance(t, ast.Name) and isinstance(node.value, (ast.Constant, ast.Tuple)) and t.id.isupper() and t.id != "__all__"]
-    assert own == []
+    # no module-level number of its own in the planner's modules (one config place, with the paper
+    # beside it); the geometry modules keep their own tessellation and tolerance numbers beside their reasons
+    modules = sorted(p for p in Path(energy_module.__file__).parent.glob("*.py") if p.name not in ("capsules.py", "gli.py"))
+    assert len(modules) > 1
+    for path in modules:
+        tree = ast.parse(path.read_text())
+        own = [t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
+               if isinstance(t, ast.Name) and isinstance(node.value, (ast.Constant, ast.Tuple)) and t.id.isupper() and t.id != "__all__"]
+        assert own == [], path.name

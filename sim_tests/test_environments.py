@@ -20,7 +20,7 @@ from robot_rise.filter import ankle_joints, ground_tilt_vector, prove, slope_ank
 from robot_rise.model import compose, model_index
 from robot_rise.posture import write_posture
 from robot_rise.rise import RiseContext, _motion_room, connection_candidates, connecting_posture, rise
-from robot_rise.sampling import sample_lying_postures
+from robot_rise.sampling import sample_lying
 
 # What a failure must name: a constraint with where (segment and time) and which joint or body.
 PRECISE = re.compile(
@@ -37,7 +37,7 @@ def _prone_at(robot, scene: str, xy: tuple[float, float]):
     from robot_rise.validity import ValidityChecker
 
     checker = ValidityChecker(robot, scene)
-    for p in sample_lying_postures(robot, "prone", 6, seed=2).postures:
+    for p in sample_lying(robot, "prone", 6, seed=2).postures:
         moved = p.with_root(np.array([xy[0], xy[1], p.root_pos[2]]))
         if checker.is_valid(moved):
             return moved
@@ -88,7 +88,7 @@ def test_ankle_offsets_put_the_soles_flat_on_the_slope_with_the_body_upright(rob
 def test_a_table_over_the_robot_blocks_every_get_up_and_the_report_names_it(robot):
     start = _prone_at(robot, "table", (0.0, 0.0))
     result = rise(robot, start, scene="table", candidates=2, budget_s=5, retries=0)
-    assert not result.ok and result.trajectory is None
+    assert not result.proven and result.trajectory is None
     assert len(result.attempts) == 2
     for attempt in result.attempts:
         text = attempt.describe()
@@ -109,7 +109,7 @@ def test_rise_cli_names_the_table_and_exits_one(robot, tmp_path, capsys):
 def test_obstacles_under_the_robot_leave_room_a_beam_under_the_face_and_a_bed_under_the_body(robot):
     for scene in ("beam", "low_bed"):
         context = RiseContext.build(robot, scene)
-        start = sample_lying_postures(robot, "prone", 1, seed=2, scene=scene).postures[0]  # settled on the beam / the bed
+        start = sample_lying(robot, "prone", 1, seed=2, scene=scene).postures[0]  # settled on the beam / the bed
         conn = connection_candidates(context.library, robot, start, 1, index=context.index, tree=context.tree)[0]
         goal = connecting_posture(context.library, robot, conn, start, context.checker)
         room = _motion_room(context, conn, goal)
@@ -140,17 +140,17 @@ def test_a_fall_is_explained_with_when_and_in_which_segment(robot):
     q[1:3, robot.joint_index("l_hip_roll")] = -1.0  # a leg kicked out sideways
     q[1:3, robot.joint_index("r_hip_roll")] = 1.0
     q[1:3, robot.joint_index("l_knee")] = 0.0
-    _, verdict, report = prove(robot, Trajectory(robot.name, robot.joint_names, t, q, stand))
+    _, verdict, proof = prove(robot, Trajectory(robot.name, robot.joint_names, t, q, stand))
     if verdict.standing:
         pytest.skip("the robot stayed up: nothing to explain")
-    assert PRECISE.search(report["problems"][0]), report["problems"]
-    assert re.search(r"on its feet at 0\.\d\d s until \d+\.\d\d s", report["diagnosis"]), report["diagnosis"]
+    assert PRECISE.search(proof.problems[0]), proof.problems
+    assert re.search(r"on its feet at 0\.\d\d s until \d+\.\d\d s", proof.diagnosis), proof.diagnosis
 
 
 def test_a_prone_robot_with_its_face_on_the_beam_rises(robot):  # paper 000 Fig. 9
-    start = sample_lying_postures(robot, "prone", 1, seed=2, scene="beam").postures[0]
+    start = sample_lying(robot, "prone", 1, seed=2, scene="beam").postures[0]
     result = rise(robot, start, scene="beam", candidates=2, budget_s=15)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     assert result.trajectory.report["scene"] == "beam" and result.trajectory.report["proven"] is True
 
 
@@ -158,13 +158,13 @@ def test_a_prone_robot_on_the_slope_rises_with_its_stance_turned_to_the_slope(ro
     kind, start = environment_postures(robot, "slope", 2, 0)[1]
     assert kind == "prone"
     result = rise(robot, start, scene="slope", candidates=2, budget_s=15)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     stance = result.trajectory.report.get("slope_stance")
     if stance is not None:  # applied when the flat-ground stance did not stand (it did not, 2026-12-01)
         assert stance["tilt_rad"] == pytest.approx(math.radians(10.0), abs=1e-6)
         assert max(abs(v) for v in stance["leg_offsets_rad"].values()) <= 0.5
     _, verdict, again = prove(robot, result.trajectory, scene="slope")
-    assert again["proven"] and verdict.standing
+    assert again.proven and verdict.standing
 
 
 @pytest.mark.slow
@@ -175,13 +175,13 @@ def test_rise_in_each_environment_succeeds_or_names_the_constraint_precisely(rob
     for kind, start in environment_postures(robot, scene, 4, 0):
         result = rise(robot, start, scene=scene, candidates=3, budget_s=15, context=context)
         under_table = scene == "table" and abs(start.root_pos[0]) < 0.3 and abs(start.root_pos[1]) < 0.25
-        if result.ok:
+        if result.proven:
             assert not under_table, "stood up under a 0.2 m table"
             risen += 1
             tr = result.trajectory
             assert tr.report["proven"] is True and tr.report["scene"] == scene
             _, verdict, again = prove(robot, tr, scene=scene)  # what `check --scene` replays
-            assert again["proven"] and verdict.standing
+            assert again.proven and verdict.standing
         else:
             assert result.attempts, "no candidate was tried"
             for attempt in result.attempts:

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_rise.filter import FilterSettings, dynamics_filter, join_with_blend, prove, time_scale
+from robot_rise.filter import FilterConfig, dynamics_filter, join_with_blend, prove, time_scale
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -43,28 +43,28 @@ def test_join_turns_a_mismatch_into_a_blend_within_the_speed_bound(robot):
 
 
 def test_a_slow_squat_is_proven_and_reports_its_numbers(robot):
-    rec, verdict, report = prove(robot, _squat_trajectory(robot, 3.0))
-    assert report["proven"], report["problems"]
+    rec, verdict, proof = prove(robot, _squat_trajectory(robot, 3.0))
+    assert proof.proven, proof.problems
     assert verdict.standing
-    assert 0 < report["peak_torque_ratio"] <= 0.9
-    assert set(report["peak_torque_ratio_per_joint"]) == set(robot.joint_names)
-    assert report["min_zmp_margin_m"] > 0
-    assert report["ground_contacts"] == ["l_foot", "r_foot"]
-    assert len(report["robot_digest"]) == 64 and len(report["scene_digest"]) == 64
+    assert 0 < proof.peak_torque_ratio <= 0.9
+    assert set(proof.peak_torque_ratio_per_joint) == set(robot.joint_names)
+    assert proof.min_zmp_margin_m > 0
+    assert proof.ground_contacts == ("l_foot", "r_foot")
+    assert len(proof.robot_digest) == 64 and len(proof.scene_digest) == 64
 
 
 def test_a_too_fast_squat_is_slowed_by_the_filter_until_it_is_within_the_envelope(robot):
     fast = _squat_trajectory(robot, 0.45)
     _, _, before = prove(robot, fast)
-    assert not before["proven"] and before["peak_torque_ratio"] > 0.9
+    assert not before.proven and before.peak_torque_ratio > 0.9
     result = dynamics_filter(robot, fast)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     assert result.trajectory.duration_s > fast.duration_s
     assert result.report["filter_iterations"] >= 2
-    assert result.trajectory.report["proven"] is True
+    assert result.trajectory.report["proven"] is True and result.proof.proven
     # the output is the commanded targets, replayable: check agrees
     _, _, again = prove(robot, result.trajectory)
-    assert again["proven"]
+    assert again.proven
 
 
 def test_an_impossible_motion_fails_with_a_reason(robot):
@@ -74,18 +74,18 @@ def test_an_impossible_motion_fails_with_a_reason(robot):
     q[1:3, robot.joint_index("r_hip_roll")] = 1.0
     q[1:3, robot.joint_index("l_knee")] = 0.0
     bad = Trajectory(robot.name, robot.joint_names, tr.t, q, tr.start)
-    result = dynamics_filter(robot, bad, settings=FilterSettings(max_iterations=2))
-    if result.ok:
+    result = dynamics_filter(robot, bad, config=FilterConfig(max_iterations=2))
+    if result.proven:
         pytest.skip("the robot happened to stay up; not an impossible motion for this model")
     assert result.reason and "filter iterations" in result.reason
     assert result.trajectory.report["proven"] is False
 
 
 def test_a_slow_squat_still_stands_under_the_robustness_model_errors(robot):
-    from robot_rise.filter import ROBUSTNESS_CHECKS, ModelError, stands_under
+    from robot_rise.filter import ROBUSTNESS_VARIANTS, ModelVariant, stands_under
 
     tr = _squat_trajectory(robot, 3.0)
-    for error in ROBUSTNESS_CHECKS:
-        assert stands_under(robot, tr, error)
+    for variant in ROBUSTNESS_VARIANTS:
+        assert stands_under(robot, tr, variant)
     # a robot with a third of its servo torque cannot hold a deep squat
-    assert not stands_under(robot, tr, ModelError("weak servos", voltage_scale=0.3))
+    assert not stands_under(robot, tr, ModelVariant("weak servos", voltage_scale=0.3))

@@ -1,4 +1,4 @@
-"""Tests of robot_rise.planning.gli: the Gauss linking integral (paper 004 eq. 7-8)."""
+"""Tests of robot_rise.planning.energy.gli: the Gauss linking integral (paper 004 eq. 7-8)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from robot_rise.constants import GLI_SAFE_ZONE_THRESHOLD
 from robot_rise.model import compose, load_robot, model_index
-from robot_rise.planning.gli import GliMatrix, LINKAGE_ORDER, gli_difference, in_safe_zone, polyline_gli, segment_pair_gli
+from robot_rise.planning.energy.gli import GliMatrix, LINKAGE_ORDER, gli_difference, in_safe_zone, polyline_gli, segment_pair_gli
 
 
 def _numeric_gli(p1, p2, p3, p4, n=400) -> float:

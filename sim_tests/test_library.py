@@ -14,12 +14,11 @@ from robot_rise.bench.library import random_lying_postures
 from robot_rise.errors import FormatError
 from robot_rise.sim.standing import judge
 from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library
-from robot_rise.library_authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS
+from robot_rise.authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
 from robot_rise.model import load_robot
 from robot_rise.posture import PostureDistance
 from robot_rise.sim.player import Player
 
-TORQUE_BOUND = 0.9  # issue 4: peak torque <= 90 % of the envelope at every instant
 STOCK_FRONT_S, STOCK_BACK_S = 3.0, 3.6  # stock OP3 get-up durations (facts/op3.md)
 
 ROBOT = load_robot()
@@ -156,7 +155,7 @@ def test_selected_connecting_posture_faces_like_the_lying_robot_and_is_a_library
 
 
 def test_mirror_swaps_sides_with_the_sign_convention_of_the_model() -> None:
-    from robot_rise.library_authoring import mirror, sym
+    from robot_rise.authoring import mirror, sym
 
     assert mirror(sym(knee=1.0, hip_roll=0.2)) == sym(knee=1.0, hip_roll=0.2)  # symmetric stays
     m = mirror({"l_sho_roll": -1.2, "head_pan": 0.5, "head_tilt": 0.1})
@@ -168,7 +167,7 @@ def test_side_motions_are_mirror_images() -> None:
     """right_tip_forward is authored as the mirror of left_tip_forward: their starts mirror too."""
     if not {"left_tip_forward", "right_tip_forward"} <= set(NAMES):
         pytest.skip("side motions not in the library")
-    from robot_rise.library_authoring import mirror
+    from robot_rise.authoring import mirror
 
     left, right = LIBRARY.get("left_tip_forward").start, LIBRARY.get("right_tip_forward").start
     mirrored = mirror(dict(left.joints))
@@ -211,7 +210,7 @@ def test_supine_motions_include_a_sit_up_that_never_turns_over_and_a_roll_over()
 
 
 def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keeps_its_rows() -> None:
-    from robot_rise.library_authoring import LEAD_CLAMP_TARGET, clamp_goal_lead
+    from robot_rise.authoring import LEAD_CLAMP_TARGET, clamp_goal_lead
     from robot_rise.trajectory import Trajectory
 
     m = LIBRARY.get("prone_elbow_knees")

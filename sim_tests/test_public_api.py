@@ -80,3 +80,27 @@ def test_the_bench_rooms_import_no_cli():
         for path in (pkg_root / room).rglob("*.py"):
             for n in _imported_modules(path):
                 assert not n.startswith("robot_rise.cli"), f"{path} imports the CLI ({n})"
+
+
+def test_the_public_face_names_the_documented_api():
+    for name in ("load_robot", "sample_lying_postures", "rise", "check", "Posture", "Trajectory", "Proof", "Robot", "RiseResult"):
+        assert name in robot_rise.__all__, name
+    for name in ("DynamixelBus", "Executor", "ExecutorConfig", "load_servo_map"):
+        assert name in drivers.__all__, name
+
+
+def test_the_readme_example_runs_and_its_trajectory_is_proven(tmp_path, monkeypatch):
+    """The ten-line example in README.md, run as written (in a temporary directory)."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(robot_rise.__file__).parent.parent / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", readme, flags=re.S)
+    example = next(b for b in blocks if "import robot_rise" in b)
+    assert len(example.strip().splitlines()) <= 12
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(example, "README.md", "exec"), namespace)
+    result = namespace["result"]
+    assert result.proven and result.proof is not None and result.proof.proven
+    assert (tmp_path / "getup.json").exists()

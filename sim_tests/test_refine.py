@@ -10,7 +10,7 @@ from robot_rise.model import load_robot
 from robot_rise.bench.problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
-from robot_rise.planning.refine import RRTBlossomPlanner, _runs, limbs_of_collisions, loose_to_strict_schedule
+from robot_rise.planning.rrt_blossom.refine import RRTBlossomPlanner, _runs, limbs_of_collisions, loose_to_strict_schedule
 from robot_rise.planning.space import PostureSpace
 from robot_rise.validity import Collision, ValidityChecker, ValidityReport
 
@@ -101,7 +101,7 @@ def test_that_an_invalid_key_posture_is_refused(robot, scenes):
 @pytest.mark.parametrize("merge_gap, replans", [(2, 1), (1, 2)])
 def test_that_cut_and_merge_replans_only_the_illegal_segments_and_keeps_the_rest(robot, merge_gap, replans):
     """Section 4.2.4: legal waypoints around the illegal ones are kept; close illegal runs are replanned as one."""
-    from robot_rise.planning.refine import PlannerConfig, _Run
+    from robot_rise.planning.rrt_blossom.refine import PlannerConfig, _Run
 
     checker = ValidityChecker(robot, "flat")
     space = PostureSpace.for_robot(robot)
@@ -132,7 +132,7 @@ def test_that_refinement_with_replanned_segments_is_deterministic_for_a_seed(rob
     also when a partial-body attempt gives up: it stops after an iteration count, not a time,
     so the full-body search after it starts from the same random state on any machine."""
     from robot_rise.bench.problems import load_problem_set
-    from robot_rise.planning.refine import PARTIAL_BODY_MAX_ITERATIONS
+    from robot_rise.planning.rrt_blossom.refine import PARTIAL_BODY_MAX_ITERATIONS
 
     p = next(q for q in load_problem_set(robot) if q.name == "beam/library")  # prone beside the beam, frozen goal
     checker = ValidityChecker(robot, "beam")

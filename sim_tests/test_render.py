@@ -15,6 +15,8 @@ from robot_rise.render import (
     camera_track,
     frame_times,
     key_frame_times,
+    mp4_encoder_available,
+    pose_sample,
     render,
     render_frames,
     view,
@@ -132,12 +134,12 @@ def test_unknown_camera_is_refused_with_the_valid_names(robot, wave, tmp_path):
 
 
 def test_no_opengl_backend_gives_one_clear_error_with_a_hint(robot, wave, monkeypatch):
-    import robot_rise.render as render_module
+    import robot_rise.render.gl as gl_module
 
     def broken(backend: str, width: int, height: int) -> None:
         raise ImportError(f"no {backend} here")
 
-    monkeypatch.setattr(render_module, "_make_gl_context", broken)
+    monkeypatch.setattr(gl_module, "_make_gl_context", broken)
     _, rec = wave
     with pytest.raises(RenderError) as info:
         list(render_frames(robot, rec, [0.0], **SMALL))
@@ -175,3 +177,34 @@ def test_viewer_without_a_display_says_so_and_suggests_render(robot, wave, monke
     with pytest.raises(RenderError, match="no display") as info:
         view(robot, rec)
     assert "robot-rise render" in info.value.hint
+
+
+def test_pose_sample_sets_the_root_and_joints_of_that_sample_over_the_rest_pose(robot, wave):
+    import mujoco
+
+    from robot_rise.model import compose, model_index
+
+    _, rec = wave
+    m = compose(robot, "flat", with_actuators=False)
+    d = mujoco.MjData(m)
+    index = model_index(m, robot)
+    d.qpos[:] = 123.0  # stale values from elsewhere must not survive
+    k = len(rec.t) // 3
+    pose_sample(m, d, index, rec, k)
+    assert np.array_equal(d.qpos[index.qpos_root], rec.root_pose[k])
+    assert np.array_equal(d.qpos[index.qpos_joints], rec.q[k])
+    rest = np.ones(m.nq, dtype=bool)
+    rest[index.qpos_root] = rest[index.qpos_joints] = False
+    assert np.array_equal(d.qpos[rest], m.qpos0[rest])
+
+
+def test_without_imageio_ffmpeg_mp4_is_unavailable_and_refused_with_a_hint(robot, wave, tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # importing it now raises ImportError
+    assert not mp4_encoder_available()
+    tr, rec = wave
+    with pytest.raises(RenderError, match="MP4 output needs imageio-ffmpeg") as info:
+        render(robot, tr, tmp_path / "x.mp4", recording=rec, **SMALL)
+    assert ".gif" in info.value.hint
+    assert not (tmp_path / "x.mp4").exists()

@@ -169,3 +169,38 @@ def test_report_images_and_video_load_in_headless_chromium(report, tmp_path):
             assert video["duration"] > 1.0  # 1 s of motion + the 3 s hold
     finally:
         driver.quit()
+
+
+def test_without_an_mp4_encoder_the_report_embeds_a_gif_instead(robot, tmp_path, monkeypatch):
+    import sys
+
+    from robot_rise.report import write_report
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # importing it now raises ImportError
+    result = write_report(robot, arm_wave(robot), tmp_path, key_frames=2)
+    page = result.path.read_text(encoding="utf-8")
+    assert result.video == tmp_path / "video.gif" and result.video.is_file()
+    assert 'src="data:image/gif;base64,' in page and "<video" not in page
+    assert result.n_images == 8  # the GIF, the key-frame sheet and six plots
+
+
+def test_sole_polygons_at_the_stand_are_the_two_soles_hull(robot):
+    from robot_rise.report.support import sole_polygons
+    from robot_rise.sim.player import play
+
+    rec = play(robot, arm_wave(robot), hold_s=0.0)
+    (poly,) = sole_polygons(robot, rec, "flat", [0])
+    x, y = poly[:, 0], poly[:, 1]
+    area_m2 = 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+    assert len(poly) >= 4
+    assert 0.005 < area_m2 < 0.1  # two small humanoid soles and the gap between them
+
+
+def test_json_values_become_tables_inline_lists_and_escaped_text():
+    from robot_rise.report.page import value_html
+
+    assert value_html({"a": 1.23456789, "b": [True, None, "<x>"]}) == (
+        '<table><tr><th>a</th><td class="num">1.23457</td></tr><tr><th>b</th><td>true, null, &lt;x&gt;</td></tr></table>'
+    )
+    assert value_html([]) == "<i>none</i>" and value_html({}) == "<i>empty</i>"
+    assert value_html([{"k": 1}]) == '<ol start=0><li><table><tr><th>k</th><td class="num">1</td></tr></table></li></ol>'

@@ -60,11 +60,11 @@ def test_scaling_refuses_absurd_factors_and_non_empty_destinations(tmp_path, rob
 
 def test_a_robot_with_ten_percent_longer_legs_rises_with_no_code_change(tmp_path, robot):
     from robot_rise.rise import rise
-    from robot_rise.sampling import sample_lying_postures
+    from robot_rise.sampling import sample_lying
 
     tall = scale_robot(robot, tmp_path / "tall", BodyScale(legs=1.1), name="op3_tall")
-    posture = sample_lying_postures(tall, "prone", 1, seed=4).postures[0]
+    posture = sample_lying(tall, "prone", 1, seed=4).postures[0]
     result = rise(tall, posture)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     assert result.trajectory.report["robot"] == "op3_tall"
     assert result.trajectory.report["robot_digest"] == tall.digest() != robot.digest()

@@ -1,5 +1,5 @@
 """Retargeting (paper 000 section 5.3): the dynamics filter adapts the library's lean to a body
-with other proportions (robot_rise.filter, lean on arms and feet)."""
+with other proportions (robot_rise.filter.lean, lean on arms and feet)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-import robot_rise.filter as filt
 from robot_rise.filter import dynamics_filter, join_with_blend, shoulder_pitch_joints, torso_pitch_rad
+import robot_rise.filter.loop as filter_loop
+from robot_rise.filter.lean import LEAN_MAX_OFFSET_RAD
 from robot_rise.library import load_library
 from robot_rise.model import compose
 from robot_rise.posture import Posture
@@ -66,23 +67,23 @@ def test_long_arms_and_torso_rise_on_the_knees_first_motion_only_with_the_lean_a
     long = scale_robot(robot, tmp_path / "long", BodyScale(arms=1.3, torso=1.2), name="op3_long")
     tr, start = _library_motion_on(long, "prone_knees_first")
     adapted = dynamics_filter(long, tr, start=start)
-    assert adapted.ok, adapted.reason
+    assert adapted.proven, adapted.reason
     assert any("lean on arms and feet adapted" in v for h in adapted.iterations for v in h.violations)
     lean = adapted.report["lean_adapted"]
-    assert lean["shoulder_joints"] == ["l_sho_pitch", "r_sho_pitch"] and 0.1 < lean["max_offset_rad"] <= filt.LEAN_MAX_OFFSET_RAD
-    monkeypatch.setattr(filt, "LEAN_ITERATIONS", 0)
+    assert lean["shoulder_joints"] == ["l_sho_pitch", "r_sho_pitch"] and 0.1 < lean["max_offset_rad"] <= LEAN_MAX_OFFSET_RAD
+    monkeypatch.setattr(filter_loop, "LEAN_ITERATIONS", 0)  # where the loop reads it
     timing_only = dynamics_filter(long, tr, start=start)
-    assert not timing_only.ok and "not standing" in timing_only.reason  # time scaling alone: falls back off its feet
+    assert not timing_only.proven and "not standing" in timing_only.reason  # time scaling alone: falls back off its feet
 
 
 @pytest.mark.slow
 def test_a_robot_with_arms_x13_and_torso_x12_rises_from_a_sampled_prone_posture_with_no_code_change(tmp_path, robot):
     from robot_rise.rise import rise
-    from robot_rise.sampling import sample_lying_postures
+    from robot_rise.sampling import sample_lying
 
     long = scale_robot(robot, tmp_path / "long", BodyScale(arms=1.3, torso=1.2), name="op3_long")
-    posture = sample_lying_postures(long, "prone", 1, seed=4).postures[0]
+    posture = sample_lying(long, "prone", 1, seed=4).postures[0]
     result = rise(long, posture)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     assert result.trajectory.report["robot_digest"] == long.digest() != robot.digest()
     assert "lean_adapted" in result.trajectory.report

@@ -12,7 +12,7 @@ from robot_rise.filter import prove
 from robot_rise.library import load_library
 from robot_rise.posture import posture_to_dict, write_posture
 from robot_rise.rise import rise
-from robot_rise.sampling import sample_lying_postures
+from robot_rise.sampling import sample_lying
 from robot_rise.trajectory import Trajectory, read_trajectory, write_trajectory
 
 
@@ -24,16 +24,16 @@ def _kinds_in_library(robot) -> set[str]:
 def test_rise_from_a_random_lying_posture_is_proven_and_starts_where_the_robot_lies(robot, kind):
     if kind not in _kinds_in_library(robot):
         pytest.skip(f"the library has no {kind} motion")
-    posture = sample_lying_postures(robot, kind, 1, seed=21).postures[0]
+    posture = sample_lying(robot, kind, 1, seed=21).postures[0]
     result = rise(robot, posture, budget_s=30)
-    assert result.ok, result.reason
+    assert result.proven, result.reason
     tr = result.trajectory
     assert posture_to_dict(tr.start) == posture_to_dict(posture)
     assert np.allclose(tr.q[0], posture.joint_vector(tr.joint_names), atol=1e-6)
     assert tr.report["proven"] is True and tr.report["robot"] == robot.name
     assert tr.report["peak_torque_ratio"] <= 0.9
     _, verdict, again = prove(robot, tr)
-    assert again["proven"] and verdict.standing
+    assert again.proven and verdict.standing
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +84,7 @@ def test_rise_rejects_bad_input_files_with_one_line(tmp_path, capsys):
 
 
 def test_rise_refuses_a_start_posture_inside_the_ground(robot, tmp_path, capsys):
-    p = sample_lying_postures(robot, "prone", 1, seed=3).postures[0]
+    p = sample_lying(robot, "prone", 1, seed=3).postures[0]
     sunk = p.with_root(p.root_pos - np.array([0, 0, 0.03]))
     path = tmp_path / "sunk.json"
     write_posture(path, sunk)
@@ -129,7 +129,7 @@ def test_check_in_a_scene_where_the_start_is_inside_an_obstacle_is_bad_input(pro
 
 def test_rise_names_a_missing_or_broken_scene_file(robot, tmp_path, capsys):
     start = tmp_path / "lying.json"
-    write_posture(start, sample_lying_postures(robot, "prone", 1, seed=3).postures[0])
+    write_posture(start, sample_lying(robot, "prone", 1, seed=3).postures[0])
     broken = tmp_path / "broken.xml"
     broken.write_text("<mujoco><worldbody><geom")
     for scene in ("nosuch", str(broken)):

@@ -13,8 +13,7 @@ from robot_rise.model import load_robot
 from robot_rise.bench.problems import align_to_start, fallback_connecting_posture, lying_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
-from robot_rise.planning.refine import RRTBlossomPlanner
-from robot_rise.planning.rrt_blossom import rrt_blossom
+from robot_rise.planning.rrt_blossom import RRTBlossomPlanner, rrt_blossom
 from robot_rise.planning.space import PostureSpace
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
@@ -173,7 +172,7 @@ def test_that_a_posture_of_another_robot_is_an_input_error(robot, flat, problems
 def test_that_every_public_name_of_the_planning_modules_resolves():
     import importlib
 
-    for mod in ("space", "motion_validator", "rrt_blossom", "refine", "smoothing", "timing", "to_trajectory"):
+    for mod in ("space", "motion_validator", "rrt_blossom", "rrt_blossom.search", "rrt_blossom.refine", "smoothing", "timing", "to_trajectory"):
         m = importlib.import_module(f"robot_rise.planning.{mod}")
         for name in m.__all__:
             assert hasattr(m, name), f"robot_rise.planning.{mod}.{name}"
@@ -217,7 +216,7 @@ def test_that_a_part_that_reached_the_sample_stays_there_while_the_others_are_pl
 
 def test_that_blocked_branches_recede_dead_or_dormant_up_the_tree():
     """Fig. 4 recession: children closed with nothing live make their parent dead (all collided) or dormant (regressed)."""
-    from robot_rise.planning.rrt_blossom import EdgeState, _Tree
+    from robot_rise.planning.rrt_blossom.search import EdgeState, _Tree
 
     tr = _Tree(np.zeros(3), 10)
     a = tr.add(np.ones(3), 0)
@@ -246,8 +245,7 @@ def test_that_turning_over_is_found_when_the_straight_slerp_is_a_somersault(robo
     trees together. The node limit, not the clock, decides: the test does not depend on the
     machine's speed."""
     from robot_rise.bench.problems import _lying_posture
-    from robot_rise.planning.refine import PlannerConfig
-    from robot_rise.planning.rrt_blossom import BlossomConfig
+    from robot_rise.planning.rrt_blossom import BlossomConfig, PlannerConfig
 
     a = _lying_posture(robot, flat, "supine", (0.0, 0.0), 0.0)
     b = _lying_posture(robot, flat, "prone", (0.0, 0.0), 0.0)

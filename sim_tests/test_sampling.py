@@ -6,14 +6,14 @@ import pytest
 
 from robot_rise.errors import RobotRiseError
 from robot_rise.model import compose, model_index
-from robot_rise.sampling import classify_lying, sample_lying_postures
+from robot_rise.sampling import classify_lying, sample_lying
 from robot_rise.servo import servo_spec
 from robot_rise.validity import ValidityChecker
 
 
 @pytest.mark.parametrize("kind", ["supine", "prone", "left", "right"])
 def test_sampled_postures_are_settled_valid_and_of_the_asked_kind(robot, kind):
-    result = sample_lying_postures(robot, kind, 2, seed=11)
+    result = sample_lying(robot, kind, 2, seed=11)
     checker = ValidityChecker(robot, "flat")
     m = compose(robot, "flat")
     idx = model_index(m, robot)
@@ -37,9 +37,9 @@ def test_sampled_postures_are_settled_valid_and_of_the_asked_kind(robot, kind):
 
 
 def test_sampling_is_deterministic_for_a_seed_and_differs_across_seeds(robot):
-    a = sample_lying_postures(robot, "any", 3, seed=5)
-    b = sample_lying_postures(robot, "any", 3, seed=5)
-    c = sample_lying_postures(robot, "any", 3, seed=6)
+    a = sample_lying(robot, "any", 3, seed=5)
+    b = sample_lying(robot, "any", 3, seed=5)
+    c = sample_lying(robot, "any", 3, seed=6)
     for p, q in zip(a.postures, b.postures):
         assert p.joints == q.joints and np.array_equal(p.root_quat_wxyz, q.root_quat_wxyz)
     assert a.postures[0].joints != c.postures[0].joints
@@ -47,16 +47,16 @@ def test_sampling_is_deterministic_for_a_seed_and_differs_across_seeds(robot):
 
 
 def test_discards_are_counted_by_reason(robot):
-    result = sample_lying_postures(robot, "prone", 3, seed=1)
+    result = sample_lying(robot, "prone", 3, seed=1)
     assert result.attempts == 3 + sum(result.discarded.values())
     assert all(isinstance(k, str) and v > 0 for k, v in result.discarded.items())
 
 
 def test_too_few_attempts_fail_with_the_reasons(robot):
     with pytest.raises(RobotRiseError, match="only 0 of 5"):
-        sample_lying_postures(robot, "right", 5, seed=1, max_attempts=1)
+        sample_lying(robot, "right", 5, seed=1, max_attempts=1)
 
 
 def test_unknown_kind_is_rejected(robot):
     with pytest.raises(RobotRiseError, match="unknown lying kind"):
-        sample_lying_postures(robot, "upside-down", 1, seed=1)  # type: ignore[arg-type]
+        sample_lying(robot, "upside-down", 1, seed=1)  # type: ignore[arg-type]

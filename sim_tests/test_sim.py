@@ -7,7 +7,7 @@ import pytest
 
 import robot_rise.sim.player as sim
 from robot_rise.errors import RobotRiseError
-from robot_rise.library_authoring import settle, sym
+from robot_rise.authoring import settle, sym
 from robot_rise.model import load_robot
 from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory

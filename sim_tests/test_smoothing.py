@@ -10,7 +10,7 @@ from robot_rise.model import load_robot
 from robot_rise.bench.problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PostureSequence
-from robot_rise.planning.refine import RRTBlossomPlanner
+from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 from robot_rise.planning.smoothing import (
     SmoothingConfig,
     _bspline_points,

@@ -15,7 +15,8 @@ from drivers.servo_map import load_servo_map
 from drivers.session import connect, mock_url_for
 from drivers.startup import engage, preflight
 from robot_rise.model import Robot
-from robot_rise.sim.twin import MujocoTwin, stand_posture
+from robot_rise.posture import stand_posture
+from robot_rise.sim.twin import MujocoTwin
 
 ARM_JOINTS = ("l_sho_pitch", "r_sho_pitch", "l_el", "r_el")
 

@@ -31,7 +31,7 @@ from drivers.control_table import (
     VELOCITY_UNIT_RAD_S,
     WATCHDOG_UNIT_S,
     ControlTable,
-    HardwareError,
+    HardwareErrorBits,
     Register,
 )
 from drivers.mockbus.plant import ServoCommand, ServoMotion
@@ -312,9 +312,9 @@ class EmulatedServo:
         bits = 0
         get = self.get
         if self.temperature_c > get("temperature_limit"):
-            bits |= HardwareError.OVERHEATING
+            bits |= HardwareErrorBits.OVERHEATING
         if not get("min_voltage_limit") <= v10 <= get("max_voltage_limit"):
-            bits |= HardwareError.INPUT_VOLTAGE
+            bits |= HardwareErrorBits.INPUT_VOLTAGE
         if bits:
             self.raise_hardware_error(bits)
 
@@ -324,7 +324,7 @@ class EmulatedServo:
             return
         new = self.hardware_error | bits
         if new != self.hardware_error:
-            _log.info("servo %d: hardware error %s", self.id, HardwareError.describe(new))
+            _log.info("servo %d: hardware error %s", self.id, HardwareErrorBits.describe(new))
         self.mem[70] = new
         if new & self.get("shutdown") and self.torque_on:
             self.mem[64] = 0

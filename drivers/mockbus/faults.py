@@ -79,7 +79,7 @@ class FaultInjector:
         self.stuck_ids.add(servo_id)
 
     def hardware_error(self, servo_id: int, bits: int) -> None:
-        """Raise hardware error ``bits`` (see ``HardwareError``) on ``servo_id`` at the next step."""
+        """Raise hardware error ``bits`` (see ``HardwareErrorBits``) on ``servo_id`` at the next step."""
         self.pending_hardware_errors[servo_id] = self.pending_hardware_errors.get(servo_id, 0) | bits
 
     def at(self, at_s: float, action: Callable[["MockBus"], None]) -> None:

@@ -13,7 +13,7 @@ Problem sets:
   ends), kept only when both ends are legal and the straight motion between them is not.
 
 - ``lying60``: the paper 000 section 5 protocol, 60 settled lying postures on flat ground
-  (``sample_lying_postures``, fixed seed: 20 supine, 20 prone, 10 left, 10 right) to their LIBRARY
+  (``sample_lying``, fixed seed: 20 supine, 20 prone, 10 left, 10 right) to their LIBRARY
   connecting postures: the nearest library frame (``connection_candidates(..., k=1)`` of
   robot_rise.rise, over the lying frames of ``RiseContext``), placed where the robot lies
   (``connecting_posture``), exactly as ``robot-rise rise`` selects its first candidate.
@@ -27,7 +27,7 @@ Planners, all on the same strict ``ValidityChecker`` (flat scene):
 - ``ompl_rrtconnect``: OMPL's RRT-Connect (PyPI ``ompl`` 2.x) through the shared adapter
   robot_rise/bench/ompl_adapter.py (the one bench_planning.py uses): our checker as state
   validity, our MotionValidator at EDGE_RESOLUTION_M as OMPL's motion validator;
-- ablations, only when named in ``--planners``. Energy planners (``EnergyParams``):
+- ablations, only when named in ``--planners``. Energy planners (``EnergyConfig``):
 
   - ``energy_raw``: every alpha step of Algorithms 1-2, nothing after them
     (``keyframes=False, straighten_limbs=False, second_stage=None``);
@@ -87,9 +87,11 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_rise.constants import ENERGY_VERIFY_RESOLUTION_M
 from robot_rise.errors import FormatError, RobotRiseError
 from robot_rise.model import Robot, load_robot
-from robot_rise.planning.energy import EnergyParams, EnergyPlanner, SecondStageParams, segment_is_valid
+from robot_rise.planning.energy import EnergyConfig, EnergyPlanner, SecondStageConfig
+from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult
 from robot_rise.planning.smoothing import SmoothingConfig, tripling_only
 from robot_rise.planning.timing import integrated_squared_jerk
@@ -208,7 +210,7 @@ def _base_pairs() -> dict[str, tuple[tuple[np.ndarray, dict[str, float]], tuple[
 
 def straight_motion_is_illegal(checker: ValidityChecker, a: Posture, b: Posture) -> bool:
     """True when the straight (lerp / slerp) motion a -> b is illegal somewhere (5 mm resolution)."""
-    return not segment_is_valid(checker, checker.qpos_of(a), checker.qpos_of(b))
+    return not MotionValidator.for_checker(checker, ENERGY_VERIFY_RESOLUTION_M).qpos_segment_valid(checker.qpos_of(a), checker.qpos_of(b))
 
 
 def crossed_problems(robot: Robot, checker: ValidityChecker, *, kinds: tuple[str, ...] = PROBLEM_KINDS, n: int = 1, seed: int = 0) -> list[CrossedProblem]:
@@ -258,12 +260,12 @@ def lying60_problems(robot: Robot, checker: ValidityChecker, *, seed: int = 1, p
     the ``DEFAULT_CANDIDATES`` candidates; each problem's ``goal_rank`` and ``goal_frame`` record which).
     """
     from robot_rise.rise import DEFAULT_CANDIDATES, RiseContext, connecting_posture, connection_candidates
-    from robot_rise.sampling import sample_lying_postures
+    from robot_rise.sampling import sample_lying
 
     ctx = RiseContext.build(robot, "flat")
     out: list[CrossedProblem] = []
     for kind, n in (per_kind or LYING60_PER_KIND).items():
-        for i, start in enumerate(sample_lying_postures(robot, kind, n, seed).postures):  # type: ignore[arg-type]
+        for i, start in enumerate(sample_lying(robot, kind, n, seed).postures):  # type: ignore[arg-type]
             goals = []
             for rank, conn in enumerate(connection_candidates(ctx.library, robot, start, DEFAULT_CANDIDATES, index=ctx.index, tree=ctx.tree)):
                 goal = connecting_posture(ctx.library, robot, conn, start, checker)
@@ -468,13 +470,13 @@ def with_common_duration_jerk(rows: list[BenchRow], reference: tuple[str, ...] =
 # The energy planner of the ablations (issue 7): the section 5.2 key postures and nothing after them
 # (the first round's default; second_stage=None alone would still straighten the limbs), and those
 # key postures through the section 6.2 second stage alone (no straightening, no dense output).
-_KEY_POSTURES = EnergyParams(straighten_limbs=False, second_stage=None)
-_KEY_POSTURES_S2 = EnergyParams(straighten_limbs=False, dense_output=False, second_stage=SecondStageParams())
+_KEY_POSTURES = EnergyConfig(straighten_limbs=False, second_stage=None)
+_KEY_POSTURES_S2 = EnergyConfig(straighten_limbs=False, dense_output=False, second_stage=SecondStageConfig())
 
 
 def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     from robot_rise.bench.ompl_adapter import OmplPlanner, ompl_available
-    from robot_rise.planning.refine import RRTBlossomPlanner
+    from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 
     out: list[tuple[str, Callable[[PlanningProblem], PlanResult]]] = [
         ("energy", EnergyPlanner()),
@@ -484,7 +486,7 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
         ("energy_s2", EnergyPlanner(_KEY_POSTURES_S2)),
         ("energy_noshortcut", EnergyPlanner(_KEY_POSTURES)),
         ("energy_s2_noshortcut", EnergyPlanner(_KEY_POSTURES_S2)),
-        ("energy_raw", EnergyPlanner(EnergyParams(keyframes=False, straighten_limbs=False, second_stage=None))),  # Algorithm 1's raw alpha steps
+        ("energy_raw", EnergyPlanner(EnergyConfig(keyframes=False, straighten_limbs=False, second_stage=None))),  # Algorithm 1's raw alpha steps
         ("energy_oldsmooth", EnergyPlanner(_KEY_POSTURES)),
         ("energy_s2_oldsmooth", EnergyPlanner(_KEY_POSTURES_S2)),
         ("rrt_blossom_oldsmooth", RRTBlossomPlanner()),
@@ -492,10 +494,10 @@ def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
         ("energy_s2_abc", EnergyPlanner(_KEY_POSTURES_S2)),
         ("rrt_blossom_abc", RRTBlossomPlanner()),
         # issue 7, second round: the default before it, and the default without each of its changes
-        ("energy_r1", EnergyPlanner(EnergyParams(straighten_limbs=False, dense_output=False,
-                                                 second_stage=SecondStageParams(frame_spacing_rad=0.05, w_lm=1.0)))),
-        ("energy_nostraighten", EnergyPlanner(EnergyParams(straighten_limbs=False))),
-        ("energy_nodense", EnergyPlanner(EnergyParams(dense_output=False))),
+        ("energy_r1", EnergyPlanner(EnergyConfig(straighten_limbs=False, dense_output=False,
+                                                 second_stage=SecondStageConfig(frame_spacing_rad=0.05, w_lm=1.0)))),
+        ("energy_nostraighten", EnergyPlanner(EnergyConfig(straighten_limbs=False))),
+        ("energy_nodense", EnergyPlanner(EnergyConfig(dense_output=False))),
     ]
     if ompl_available():
         out.append(("ompl_rrtconnect", OmplPlanner("RRTConnect")))

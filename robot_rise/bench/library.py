@@ -117,7 +117,7 @@ def random_lying_postures(robot: Robot, n: int, seed: int = 0) -> tuple[np.ndarr
     Returns:
         (quats (n, 4) w x y z, joints (n, n_joints) [rad]).
     """
-    from robot_rise.library_authoring import quat_lying
+    from robot_rise.authoring import quat_lying
 
     rng = np.random.default_rng(seed)
     kinds = ("supine", "prone", "left", "right")
@@ -138,7 +138,7 @@ def random_lying_postures(robot: Robot, n: int, seed: int = 0) -> tuple[np.ndarr
 def bench_motions(robot: Robot, library: MotionLibrary) -> tuple[MotionFigures, ...]:
     """Play every motion nominally on flat ground (and at the four friction/mass corners, for the
     worst peak) and collect its figures."""
-    from robot_rise.library_authoring import robustness_players
+    from robot_rise.authoring import robustness_players
 
     player, *corners = robustness_players(robot)
     out = []

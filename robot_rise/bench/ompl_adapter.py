@@ -19,7 +19,7 @@ import numpy as np
 from robot_rise.constants import EDGE_RESOLUTION_M
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus
-from robot_rise.planning.refine import states_to_sequence
+from robot_rise.planning.rrt_blossom import states_to_sequence
 from robot_rise.planning.space import PostureSpace
 
 __all__ = ["OmplPlanner", "ompl_available"]

@@ -46,8 +46,7 @@ from robot_rise.bench.problems import FrozenProblem, build_problem_set, library_
 from robot_rise.bench.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench_energy)
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult
-from robot_rise.planning.refine import PlannerConfig, RRTBlossomPlanner
-from robot_rise.planning.rrt_blossom import BlossomConfig
+from robot_rise.planning.rrt_blossom import BlossomConfig, PlannerConfig, RRTBlossomPlanner
 from robot_rise.planning.smoothing import smooth_path
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import path_length, path_min_clearance

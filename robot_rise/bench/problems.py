@@ -15,7 +15,7 @@ nearest frames of the ``DEFAULT_CANDIDATES`` nearest motions among the library's
 (``RiseContext``, K-means tree, paper 000 eq. 1), each placed where the robot lies
 (``connecting_posture``); the first whose placement is legal is the goal.
 
-The lying postures come from :func:`robot_rise.sampling.sample_lying_postures` (settled in
+The lying postures come from :func:`robot_rise.sampling.sample_lying` (settled in
 MuJoCo, fixed seeds: the paper 000 section 5 protocol of 20 supine, 20 prone, 20 lateral).
 Connecting postures come from the motion library when ``robot_rise.library`` offers a selection
 function; until then from :func:`fallback_connecting_posture`, a deep crouch on both feet made
@@ -121,7 +121,7 @@ def lying_problems(robot: Robot, n_per_kind: int, seed: int, *, kinds: tuple[str
         n_per_kind: postures per kind (``per_kind`` overrides per kind, e.g. lateral 10 + 10).
         seed: sampling seed (each kind uses it).
     """
-    from robot_rise.sampling import sample_lying_postures
+    from robot_rise.sampling import sample_lying
 
     checker = ValidityChecker(robot, "flat")
     out: list[BenchProblem] = []
@@ -129,7 +129,7 @@ def lying_problems(robot: Robot, n_per_kind: int, seed: int, *, kinds: tuple[str
         n = (per_kind or {}).get(kind, n_per_kind)
         if n <= 0:
             continue
-        res = sample_lying_postures(robot, kind, n, seed)  # type: ignore[arg-type]
+        res = sample_lying(robot, kind, n, seed)  # type: ignore[arg-type]
         for i, p in enumerate(res.postures):
             out.append(BenchProblem(f"{kind}_{seed}_{i:03d}", "flat", p, connecting_posture_for(p, checker)))
     return out
@@ -241,14 +241,14 @@ def build_problem_set(
     """
     from robot_rise.library import load_library
     from robot_rise.rise import RiseContext
-    from robot_rise.sampling import sample_lying_postures
+    from robot_rise.sampling import sample_lying
 
     out: list[FrozenProblem] = []
     ctx = RiseContext.build(robot, "flat")
     tctx = RiseContext.build(robot, "flat", library=load_library(turnover_library)) if turnover_library is not None else None
     turnover: list[FrozenProblem] = []
     for kind, n in (per_kind or FLAT60_PER_KIND).items():
-        for i, start in enumerate(sample_lying_postures(robot, kind, n, seed).postures):  # type: ignore[arg-type]
+        for i, start in enumerate(sample_lying(robot, kind, n, seed).postures):  # type: ignore[arg-type]
             goal, source = library_connecting_posture(ctx, start)
             out.append(FrozenProblem(f"{kind}/{i}", "flat60", "flat", start, goal, source))
             log.info("flat60 %s/%d -> %s", kind, i, source)

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_rise.filter import ModelError
+from robot_rise.filter import ModelVariant, Proof
 from robot_rise.model import Robot
-from robot_rise.sampling import sample_lying_postures
+from robot_rise.sampling import sample_lying
 from robot_rise.validity import ValidityChecker
 
 __all__ = ["ValidityBenchmark", "bench_validity", "bench_environments", "environment_postures", "environments_table", "ENVIRONMENT_SCENES"]
@@ -38,7 +38,7 @@ def bench_validity(
     Queries are settled lying postures (4 of each kind) with every joint perturbed by up to
     ``perturbation_rad`` and clipped to limits, as an RRT explores around lying postures.
     """
-    base = sample_lying_postures(robot, "any", 8, seed)
+    base = sample_lying(robot, "any", 8, seed)
     checker = ValidityChecker(robot, scene)
     rng = np.random.default_rng(seed)
     rows = []
@@ -60,13 +60,14 @@ def bench_validity(
 
 # --- rise: the product's main job over random lying postures (issue 6) ---------------------------
 
-ROBUSTNESS_VARIANTS: tuple[ModelError, ...] = (
-    ModelError("mass -10%, friction 0.5", mass_scale=0.9, friction_scale=0.5 / 0.9),
-    ModelError("mass +10%, friction 1.2", mass_scale=1.1, friction_scale=1.2 / 0.9),
-    ModelError("servo torque -15%", voltage_scale=0.85),
-    ModelError("one control period of latency", latency_s=0.01),
+BENCH_MODEL_VARIANTS: tuple[ModelVariant, ...] = (
+    ModelVariant("mass -10%, friction 0.5", mass_scale=0.9, friction_scale=0.5 / 0.9),
+    ModelVariant("mass +10%, friction 1.2", mass_scale=1.1, friction_scale=1.2 / 0.9),
+    ModelVariant("servo torque -15%", voltage_scale=0.85),
+    ModelVariant("one control period of latency", latency_s=0.01),
 )
-"""Replays of each proven trajectory under model errors (issue 6). Friction scales are relative
+"""Replays of each proven trajectory under model errors (issue 6), more than ``rise`` itself
+checks (``robot_rise.filter.ROBUSTNESS_VARIANTS``). Friction scales are relative
 to the scene's ground friction 0.9 (so 0.5 and 1.2 absolute). Servo torque -15 % is a 15 % lower
 supply voltage (stall torque and no-load speed both scale with it). Latency: targets arrive one
 100 Hz control period late. Judged as ``filter.stands_under`` judges (the proof's criteria)."""
@@ -112,12 +113,13 @@ def _rise_case(args: tuple) -> RiseCase:
         return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
     wall = _time.perf_counter() - t0
     rep = result.trajectory.report if result.trajectory is not None else {}
+    proof = Proof.from_dict(rep) if result.trajectory is not None else None
     robust: dict[str, bool] = {}
-    if result.ok and robustness and result.trajectory is not None:
-        for error in ROBUSTNESS_VARIANTS:
-            robust[error.label] = stands_under(robot, result.trajectory, error, scene=scene)
+    if result.proven and robustness and result.trajectory is not None:
+        for variant in BENCH_MODEL_VARIANTS:
+            robust[variant.label] = stands_under(robot, result.trajectory, variant, scene=scene)
     return RiseCase(
-        name, kind, result.ok, wall, float(rep.get("duration_s", float("nan"))), float(rep.get("peak_torque_ratio", float("nan"))),
+        name, kind, result.proven, wall, proof.duration_s if proof else float("nan"), proof.peak_torque_ratio if proof else float("nan"),
         str(rep.get("motion", "")), result.reason, robust,
     )
 
@@ -135,7 +137,7 @@ def bench_rise(
 ) -> list[RiseCase]:
     """Rise from ``n_per_kind`` supine, prone and lateral (half left, half right) postures.
 
-    Postures come from ``sample_lying_postures`` with seeds ``seed`` (supine, prone) and ``seed``
+    Postures come from ``sample_lying`` with seeds ``seed`` (supine, prone) and ``seed``
     (left, right), as the paper's protocol (000 section 5): 20 supine, 20 prone, 20 lateral.
     """
     from concurrent.futures import ProcessPoolExecutor
@@ -146,7 +148,7 @@ def bench_rise(
     for kind, n in groups:
         if n == 0:
             continue
-        sample = sample_lying_postures(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
+        sample = sample_lying(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
         for i, p in enumerate(sample.postures):
             tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness))
     results: list[RiseCase] = []
@@ -186,7 +188,7 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             "duration_median_s": float(np.median(dur)),
             "peak_torque_ratio_max": float(np.max(peak)),
         }
-        for label in (e.label for e in ROBUSTNESS_VARIANTS):
+        for label in (v.label for v in BENCH_MODEL_VARIANTS):
             tested = [c for c in ok if label in c.robust]
             if tested:
                 row[f"robust: {label}"] = sum(c.robust[label] for c in tested) / len(tested)
@@ -226,7 +228,7 @@ def _table_postures(robot: Robot, n: int, seed: int) -> list[tuple[str, object]]
     from robot_rise.posture import quat_multiply
 
     checker = ValidityChecker(robot, "table")
-    flat = sample_lying_postures(robot, "any", 6 * n, seed)
+    flat = sample_lying(robot, "any", 6 * n, seed)
     hx, hy = TABLE_HALF_EXTENTS_M
     edges = [(np.array([1.0, 0.0]), hx), (np.array([0.0, 1.0]), hy), (np.array([-1.0, 0.0]), hx), (np.array([0.0, -1.0]), hy)]
     half: list[tuple[str, object]] = []
@@ -264,7 +266,7 @@ def environment_postures(robot: Robot, scene: str, n: int, seed: int) -> list[tu
     """
     if scene == "table":
         return _table_postures(robot, n, seed)
-    sample = sample_lying_postures(robot, "any", n, seed, scene=scene)
+    sample = sample_lying(robot, "any", n, seed, scene=scene)
     return list(zip(sample.kinds, sample.postures))
 
 

@@ -6,7 +6,7 @@ import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import FilterSettings, prove, scene_digest
+from robot_rise.filter import FilterConfig, prove, scene_digest
 from robot_rise.validity import ValidityChecker
 
 
@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example:\n  robot-rise check out/rise.json --scene flat",
     )
     p.add_argument("trajectory", metavar="TRAJ", help="trajectory file (robot-rise/trajectory@1)")
-    p.add_argument("--margin", type=float, default=FilterSettings().envelope_margin, help="envelope margin (default: 0.10)")
+    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="envelope margin (default: 0.10)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     add_robot_args(p)
     p.set_defaults(func=run)
@@ -40,15 +40,15 @@ def run(args: argparse.Namespace) -> int:
         )
     proven_in = tr.report.get("scene")
     other_scene = bool(tr.report.get("scene_digest")) and tr.report.get("scene_digest") != scene_digest(args.scene)
-    _, verdict, report = prove(robot, tr, scene=args.scene, settings=FilterSettings(envelope_margin=args.margin))
+    _, verdict, proof = prove(robot, tr, scene=args.scene, config=FilterConfig(envelope_margin=args.margin))
     if args.json:
-        print_json(report)
+        print_json(proof.to_dict())
     else:
-        print(f"{args.trajectory}: {'PROVEN' if report['proven'] else 'NOT PROVEN'} in scene {args.scene}")
+        print(f"{args.trajectory}: {'PROVEN' if proof.proven else 'NOT PROVEN'} in scene {args.scene}")
         if other_scene:
             print(f"  note: the file was proven in scene {proven_in}, not this one (pass --scene {proven_in})")
         print(f"  {verdict.summary()}")
-        print(f"  duration {report['duration_s']:.2f} s; ground contacts: {', '.join(report['ground_contacts']) or 'none'}")
-        for line in report["problems"]:
+        print(f"  duration {proof.duration_s:.2f} s; ground contacts: {', '.join(proof.ground_contacts) or 'none'}")
+        for line in proof.problems:
             print(f"  problem: {line}")
-    return 0 if report["proven"] else 1
+    return 0 if proof.proven else 1

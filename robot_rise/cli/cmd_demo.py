@@ -1,22 +1,24 @@
 """robot-rise demo: the main job on the embedded default robot, end to end, with no hardware.
 
 sample a lying posture -> rise (select, plan, filter, prove) -> check (independent replay) ->
-execute on the emulated Dynamixel bus -> HTML report. Each stage is the same command a user
-would run; this module only wires them and prints where the results are.
+execute on the emulated Dynamixel bus -> HTML report. Each stage calls the same function as the
+command a user would run (``rise``, ``check``, ``execute``, ``report``) and prints where its results are.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 from pathlib import Path
 
-from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg
+from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg
+from robot_rise.cli._execution import ExecuteOptions, execute_trajectory
+from robot_rise.cli.cmd_report import report_lines
 from robot_rise.errors import RobotRiseError
-from robot_rise.filter import prove
+from robot_rise.filter import Proof, prove
+from robot_rise.report import write_report
 from robot_rise.posture import write_posture
 from robot_rise.rise import rise
-from robot_rise.sampling import classify_lying, sample_lying_postures
+from robot_rise.sampling import classify_lying, sample_lying
 from robot_rise.trajectory import write_trajectory
 
 
@@ -38,41 +40,34 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_rise.cli import build_parser
-
     robot = load_robot_arg(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     print(f"robot {robot.name}: {robot.n_joints} joints, stand height {robot.stand_height_m:.3f} m (torso above soles)")
-    sample = sample_lying_postures(robot, args.kind, 1, args.seed, scene=args.scene)
+    sample = sample_lying(robot, args.kind, 1, args.seed, scene=args.scene)
     posture = sample.postures[0]
     lying = out / "lying.json"
     write_posture(lying, posture)
     print(f"1. sampled a settled {classify_lying(posture.root_quat_wxyz)} posture -> {lying}")
     result = rise(robot, posture, scene=args.scene, seed=args.seed)
-    if not result.ok or result.trajectory is None:
+    if not result.proven or result.trajectory is None:
         raise RobotRiseError(f"rise failed: {result.reason}", hint="try another --seed or --kind")
     traj = out / "rise.json"
     write_trajectory(traj, result.trajectory)
     rep = result.trajectory.report
-    print(f"2. rise: PROVEN via {rep['motion']} in {rep['duration_s']:.2f} s of robot time, peak torque "
-          f"{rep['peak_torque_ratio']:.2f} of the envelope -> {traj}")
+    proof = Proof.from_dict(rep)
+    print(f"2. rise: PROVEN via {rep['motion']} in {proof.duration_s:.2f} s of robot time, peak torque "
+          f"{proof.peak_torque_ratio:.2f} of the envelope -> {traj}")
     _, verdict, check = prove(robot, result.trajectory, scene=args.scene)
-    print(f"3. check (independent replay): {'PROVEN' if check['proven'] else 'NOT PROVEN'}; {verdict.summary()}")
-    code = 0 if check["proven"] else 1
-    parser = build_parser()
+    print(f"3. check (independent replay): {'PROVEN' if check.proven else 'NOT PROVEN'}; {verdict.summary()}")
+    code = 0 if check.proven else 1
     if not args.no_execute:
-        argv = ["execute", str(traj), "--mock", "--twin", "--yes", "--log", str(out / "execute_log.csv")]
-        if args.robot:
-            argv += ["--robot", args.robot]
-        ns = parser.parse_args(argv)
         print("4. execute on the emulated Dynamixel bus, servos moved by the MuJoCo twin:")
-        rc = ns.func(ns)
-        code = code or rc
-    if importlib.util.find_spec("robot_rise.cli.cmd_report") is not None:
-        report_dir = out / "report"
-        ns = parser.parse_args(["report", str(traj), "--out", str(report_dir), "--scene", str(args.scene)])
-        rc = ns.func(ns)
-        print(f"5. report: {report_dir / 'report.html'}")
-        code = code or rc
-    return code
+        options = ExecuteOptions(mock=True, twin=True, yes=True, log=str(out / "execute_log.csv"))
+        code = code or execute_trajectory(robot, result.trajectory, options)
+    report_dir = out / "report"
+    report = write_report(robot, result.trajectory, report_dir, scene=args.scene, name=traj.name, progress=Progress("render", 1))
+    for line in report_lines(report):
+        print(line)
+    print(f"5. report: {report_dir / 'report.html'}")
+    return code or (0 if report.proof.proven else 1)

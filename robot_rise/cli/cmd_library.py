@@ -1,4 +1,4 @@
-"""``robot-rise library list|show|play NAME|bench``: inspect, replay and benchmark the motion library."""
+"""``robot-rise library list|show|play NAME|bench|author``: inspect, replay, benchmark and author the motion library."""
 
 from __future__ import annotations
 
@@ -33,6 +33,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     b.add_argument("--n", type=int, default=1000, help="random lying postures (default 1000)")
     b.add_argument("--seed", type=int, default=0)
     b.set_defaults(func=_bench)
+    a = sub.add_parser(
+        "author",
+        help="regenerate the OP3 motions from their keyframes (settle, retime, verify, write; minutes per motion)",
+        description="Regenerate the OP3 motion library from the keyframes in robot_rise.authoring.op3_motions: "
+        "each motion is settled, retimed in MuJoCo and verified on nominal and the four friction/mass corners; "
+        "only passing motions are written and their index rows added or replaced. Progress is logged with -v.",
+        epilog="Example: robot-rise -v library author --out /tmp/op3 --only prone_knees_first",
+    )
+    a.add_argument("--out", type=Path, default=None, help="library directory to write (default: --dir, else configs/motions/op3)")
+    a.add_argument(
+        "--only",
+        "--names",
+        dest="names",
+        nargs="*",
+        default=None,
+        metavar="NAME",
+        help="motions to rebuild (their index rows are replaced or added; others kept); default: all, dropping rows of motions no longer authored",
+    )
+    a.set_defaults(func=_author)
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -90,3 +109,15 @@ def _bench(args: argparse.Namespace) -> int:
     result = bench_selection(robot, lib, n=args.n, seed=args.seed)
     print(result.markdown())
     return EXIT_OK if result.agreement >= 0.99 else EXIT_FAILURE
+
+
+def _author(args: argparse.Namespace) -> int:
+    from robot_rise.authoring import author_library
+    from robot_rise.model import load_robot
+    from robot_rise.paths import configs_dir
+
+    out = args.out or args.dir or configs_dir() / "motions" / "op3"
+    entries = author_library(out, load_robot(args.robot), names=args.names)
+    for row in entries:
+        print(f"{row['name']:24s} {row['duration_s']:6.2f}s  written to {out}")
+    return EXIT_OK if entries else EXIT_FAILURE

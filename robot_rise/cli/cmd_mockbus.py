@@ -45,7 +45,8 @@ def run_serve(args: argparse.Namespace) -> int:
     from drivers.session import mock_bus_for
     from robot_rise.model import load_robot
     from robot_rise.posture import read_posture
-    from robot_rise.sim.twin import MujocoTwin, stand_posture
+    from robot_rise.posture import stand_posture
+    from robot_rise.sim.twin import MujocoTwin
 
     robot = load_robot(args.robot)
     smap = load_servo_map(robot.directory / "servos.toml")

@@ -47,7 +47,7 @@ def _planner(name: str):  # noqa: ANN202
         from robot_rise.planning.energy import EnergyPlanner
 
         return EnergyPlanner()
-    from robot_rise.planning.refine import RRTBlossomPlanner
+    from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 
     return RRTBlossomPlanner()
 

@@ -9,8 +9,8 @@ from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_rob
 from robot_rise.cli._common import load_trajectory_for
 from robot_rise.cli.cmd_render import add_camera_args, camera_from_args
 from robot_rise.errors import RobotRiseError
-from robot_rise.filter import FilterSettings
-from robot_rise.report import write_report
+from robot_rise.filter import FilterConfig
+from robot_rise.report import ReportResult, write_report
 
 __all__ = ["register", "run"]
 
@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_camera_args(p)
     p.add_argument("--no-video", action="store_true", help="key frames only (faster)")
     p.add_argument("--frames", type=int, default=8, metavar="N", help="key frames (default: 8)")
-    p.add_argument("--margin", type=float, default=FilterSettings().envelope_margin, help="envelope margin of the check (default: 0.10)")
+    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="envelope margin of the check (default: 0.10)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_robot_args(p)
     p.set_defaults(func=run)
@@ -52,15 +52,19 @@ def run(args: argparse.Namespace) -> int:
         camera=camera_from_args(args),
         video=not args.no_video,
         key_frames=args.frames,
-        settings=FilterSettings(envelope_margin=args.margin),
+        filter_config=FilterConfig(envelope_margin=args.margin),
         progress=Progress("render", 1),
     )
     if args.json:
         print_json(result.as_dict())
     else:
-        proven = bool(result.check.get("proven"))
-        print(f"wrote {result.path} ({result.size_bytes / 1e6:.1f} MB, {result.n_images} images{', video' if result.video else ''})")
-        print(f"  {'PROVEN' if proven else 'NOT PROVEN'}: {result.verdict.summary()}")
-        for line in result.check.get("problems", []):
-            print(f"  problem: {line}")
-    return 0 if result.check.get("proven") else 1
+        for line in report_lines(result):
+            print(line)
+    return 0 if result.proof.proven else 1
+
+
+def report_lines(result: ReportResult) -> list[str]:
+    """What the report command prints about a written report (also printed by ``demo``)."""
+    lines = [f"wrote {result.path} ({result.size_bytes / 1e6:.1f} MB, {result.n_images} images{', video' if result.video else ''})",
+             f"  {'PROVEN' if result.proof.proven else 'NOT PROVEN'}: {result.verdict.summary()}"]
+    return lines + [f"  problem: {line}" for line in result.proof.problems]

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
-from robot_rise.filter import FilterSettings
+from robot_rise.filter import FilterConfig, Proof
 from robot_rise.library import load_library
 from robot_rise.posture import read_posture
 from robot_rise.rise import DEFAULT_CANDIDATES, rise
@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="planner seed (default: 0)")
     p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS", help="planning budget per candidate (default: 30)")
     p.add_argument("--candidates", type=int, default=DEFAULT_CANDIDATES, help=f"library motions to try (default: {DEFAULT_CANDIDATES})")
-    p.add_argument("--margin", type=float, default=FilterSettings().envelope_margin, help="torque envelope margin (default: 0.10)")
+    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="torque envelope margin (default: 0.10)")
     p.add_argument("--library", metavar="DIR", help="motion library directory (default: the robot's shipped one)")
     p.add_argument("--write-unproven", action="store_true", help="write the best unproven attempt too (exit code stays 1)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -53,22 +53,23 @@ def run(args: argparse.Namespace) -> int:
 
     result = rise(
         robot, start, scene=args.scene, key=key, seed=args.seed, budget_s=args.budget, library=library,
-        candidates=args.candidates, settings=FilterSettings(envelope_margin=args.margin), progress=progress,
+        candidates=args.candidates, filter_config=FilterConfig(envelope_margin=args.margin), progress=progress,
     )
     wrote = False
-    if result.trajectory is not None and (result.ok or args.write_unproven):
+    if result.trajectory is not None and (result.proven or args.write_unproven):
         write_trajectory(args.out, result.trajectory)
         wrote = True
     rep = result.trajectory.report if result.trajectory is not None else {}
+    proof = Proof.from_dict(rep) if result.trajectory is not None else None
     if args.json:
-        print_json({"proven": result.ok, "out": args.out if wrote else None, "reason": result.reason,
-                    "attempts": [a.describe() for a in result.attempts], "duration_s": rep.get("duration_s"),
-                    "peak_torque_ratio": rep.get("peak_torque_ratio"), "motion": rep.get("motion")})
-    elif result.ok:
-        print(f"PROVEN: {args.out} ({rep['motion']}, {rep['duration_s']:.2f} s, peak torque {rep['peak_torque_ratio']:.2f} of the envelope,"
+        print_json({"proven": result.proven, "out": args.out if wrote else None, "reason": result.reason,
+                    "attempts": [a.describe() for a in result.attempts], "duration_s": proof.duration_s if proof else None,
+                    "peak_torque_ratio": proof.peak_torque_ratio if proof else None, "motion": rep.get("motion")})
+    elif result.proven and proof is not None:
+        print(f"PROVEN: {args.out} ({rep['motion']}, {proof.duration_s:.2f} s, peak torque {proof.peak_torque_ratio:.2f} of the envelope,"
               f" {rep['filter_iterations']} filter iterations)")
-        print(f"  {rep['judge']}")
+        print(f"  {proof.judge}")
     else:
         print(f"NOT PROVEN: {result.reason}")
         print("  nothing written" if not wrote else f"  best unproven attempt written to {args.out}")
-    return 0 if result.ok else 1
+    return 0 if result.proven else 1

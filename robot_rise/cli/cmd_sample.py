@@ -8,7 +8,7 @@ from pathlib import Path
 from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, print_json
 from robot_rise.errors import RobotRiseError
 from robot_rise.posture import write_posture
-from robot_rise.sampling import LYING_KINDS, sample_lying_postures
+from robot_rise.sampling import LYING_KINDS, sample_lying
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise RobotRiseError(f"--out {out} exists and is not a directory")
-    result = sample_lying_postures(
+    result = sample_lying(
         robot, args.kind, args.n, args.seed, scene=args.scene, max_attempts=args.max_attempts, progress=Progress("sampling", args.n)
     )
     out.mkdir(parents=True, exist_ok=True)

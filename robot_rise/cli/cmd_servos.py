@@ -67,12 +67,13 @@ def _connect(args: argparse.Namespace):
     from drivers.servo_map import load_servo_map
     from drivers.session import connect, mock_url_for
     from robot_rise.model import load_robot
+    from robot_rise.posture import stand_posture
 
     robot = load_robot(args.robot)
     smap = load_servo_map(robot.directory / "servos.toml")
     port = args.port
     if args.mock:
-        stand = dict(zip(robot.joint_names, robot.stand_qpos[7:]))
+        stand = dict(stand_posture(robot).joints)
         port = mock_url_for(smap, initial_rad=stand, wire_timing=False)
     return robot, smap, connect(smap, port, baud_rate=args.baud)
 
@@ -113,7 +114,7 @@ def _nothing_answered(baud: int, map_baud: int) -> None:
 
 
 def run_status(args: argparse.Namespace) -> int:
-    from drivers.control_table import HardwareError
+    from drivers.control_table import HardwareErrorBits
     from drivers.startup import preflight
 
     _, smap, conn = _connect(args)
@@ -126,7 +127,7 @@ def run_status(args: argparse.Namespace) -> int:
             if not fb.valid[k]:
                 print(f"{s.id:3d} {s.joint:14s} {'--':>10}  no answer")
                 continue
-            err = HardwareError.describe(int(fb.hardware_error[k]))
+            err = HardwareErrorBits.describe(int(fb.hardware_error[k]))
             print(f"{s.id:3d} {s.joint:14s} {fb.position_rad[k]:10.3f} {fb.temperature_c[k]:7.0f} "
                   f"{fb.voltage_v[k]:7.1f}  {err}")
         if not fb.valid.any():
@@ -162,7 +163,7 @@ def run_reboot(args: argparse.Namespace) -> int:
 
 
 def run_read_posture(args: argparse.Namespace) -> int:
-    from robot_rise.posture import Posture, read_posture, write_posture
+    from robot_rise.posture import Posture, read_posture, stand_posture, write_posture
 
     # Read the root source before the bus is touched: a bad file must not leave torque off for nothing.
     root_source = read_posture(args.root_from, None) if args.root_from else None
@@ -182,13 +183,14 @@ def run_read_posture(args: argparse.Namespace) -> int:
             missing = [s.id for s, ok in zip(smap.servos, fb.valid) if not ok]
             raise CommunicationError(f"no present position from servo(s) {missing}; no posture written",
                                      hint="check power and cabling (robot-rise servos status --port PORT)")
-    joints = {name: float(v) for name, v in zip(robot.joint_names, robot.stand_qpos[7:])}
+    stand = stand_posture(robot)
+    joints = dict(stand.joints)
     for s, q in zip(smap.servos, fb.position_rad):
         joints[s.joint] = float(q)
     if root_source is not None:
         root_pos, root_quat, root_note = root_source.root_pos, root_source.root_quat_wxyz, f"from {args.root_from}"
     else:
-        root_pos, root_quat = np.asarray(robot.stand_qpos[:3]), np.asarray(robot.stand_qpos[3:7])
+        root_pos, root_quat = stand.root_pos, stand.root_quat_wxyz
         root_note = "from the 'stand' keyframe"
     posture = Posture(robot.name, root_pos, root_quat, joints)
     write_posture(args.out, posture)

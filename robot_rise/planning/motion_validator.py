@@ -140,6 +140,17 @@ class MotionValidator:
         self._qpos0 = self.checker.model.qpos0.copy()
         self._iroot = self.checker.index.qpos_root
         self._ijoint = self.checker.index.qpos_joints
+        # a model without other coordinates (no free scene bodies) has qpos laid out as the state:
+        # the two convert by copying nothing (the checker only reads them)
+        nq = self.checker.model.nq
+        self._same_layout = bool(
+            nq == 7 + len(self._ijoint) and np.array_equal(self._iroot, np.arange(7)) and np.array_equal(self._ijoint, np.arange(7, nq))
+        )
+
+    @classmethod
+    def for_checker(cls, checker: ValidityChecker, resolution_m: float = EDGE_RESOLUTION_M) -> MotionValidator:
+        """The validator of the checker's robot in its own posture space."""
+        return cls(checker, PostureSpace.for_robot(checker.robot), resolution_m)
 
     def with_checker(self, checker: ValidityChecker) -> MotionValidator:
         """Same robot geometry and resolution, another checker (e.g. another looseness)."""
@@ -161,7 +172,14 @@ class MotionValidator:
         """Number of intervals the motion a -> b is checked at (>= 1)."""
         return max(1, math.ceil(self.travel_bound(a, b) / self.resolution_m))
 
+    def _state(self, qpos: np.ndarray) -> np.ndarray:
+        if self._same_layout:
+            return np.asarray(qpos, dtype=float)
+        return np.concatenate([qpos[self._iroot], qpos[self._ijoint]])
+
     def _qpos(self, x: np.ndarray) -> np.ndarray:
+        if self._same_layout:
+            return x
         q = self._qpos0.copy()
         q[self._iroot] = x[:7]
         q[self._ijoint] = x[7:]
@@ -191,6 +209,14 @@ class MotionValidator:
             if not self.state_valid(x):
                 return False
         return True
+
+    def qpos_segment_valid(self, qpos_a: np.ndarray, qpos_b: np.ndarray) -> bool:
+        """Is the motion between two qpos rows of the checker's model legal, both ends included.
+
+        For planners that work on qpos rows (the energy planner); shape (nq,) each.
+        """
+        a, b = self._state(qpos_a), self._state(qpos_b)
+        return self.state_valid(a) and self.segment_valid(a, b)
 
     def first_invalid(self, a: np.ndarray, b: np.ndarray) -> SegmentReport:
         """Walk a -> b in order and report the first illegal posture (a included)."""

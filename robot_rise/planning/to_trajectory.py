@@ -1,7 +1,7 @@
 """From a planning problem to a trajectory file: plan, smooth, time, package.
 
 ``plan_trajectory(problem)`` is the one call behind ``robot-rise plan``: RRT-blossom with
-loose-to-strict refinement (refine.py), shortcut + B-spline smoothing re-verified with the
+loose-to-strict refinement (rrt_blossom/refine.py), shortcut + B-spline smoothing re-verified with the
 checker (smoothing.py), servo-limited timing (timing.py), and a ``robot-rise/trajectory@1`` with
 the planned root pose per row (``root``) so that anyone can re-check the path kinematically.
 """
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from robot_rise.planning.problem import Planner, PlanningProblem, PlanResult, PostureSequence
-from robot_rise.planning.refine import RRTBlossomPlanner
+from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 from robot_rise.planning.space import PostureSpace, quat_angle
 from robot_rise.planning.smoothing import SmoothingConfig, smooth_path
 from robot_rise.planning.timing import TimedPath, TimingLimits, time_parameterize

@@ -33,9 +33,9 @@ import numpy as np
 from robot_rise.constants import STAND_MAX_TILT_RAD, STAND_MIN_HEIGHT_FRACTION
 from robot_rise.errors import ConfigError
 from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
-from robot_rise.posture import Posture, posture_from_qpos
+from robot_rise.posture import Posture, posture_from_qpos, stand_posture
 
-__all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "MujocoTwin", "stand_posture"]
+__all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "MujocoTwin"]
 
 log = logging.getLogger(__name__)
 
@@ -96,12 +96,6 @@ class TwinState:
         asks for the feet-only contact and a hold time, which one instant cannot show)."""
         return (self.tilt_rad <= STAND_MAX_TILT_RAD
                 and self.torso_height_m >= STAND_MIN_HEIGHT_FRACTION * self.stand_height_m)
-
-
-def stand_posture(robot: Robot) -> Posture:
-    """The robot's ``stand`` keyframe as a :class:`Posture`."""
-    q = robot.stand_qpos
-    return Posture(robot.name, np.asarray(q[:3]), np.asarray(q[3:7]), dict(zip(robot.joint_names, q[7:])))
 
 
 class MujocoTwin:

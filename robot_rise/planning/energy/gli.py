@@ -24,7 +24,7 @@ import numpy as np
 
 from robot_rise.constants import GLI_SAFE_ZONE_THRESHOLD
 from robot_rise.model import ModelIndex, Robot
-from robot_rise.planning.capsules import robot_capsules
+from robot_rise.planning.energy.capsules import robot_capsules
 
 __all__ = [
     "segment_pair_gli",

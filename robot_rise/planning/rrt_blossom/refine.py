@@ -35,7 +35,7 @@ from robot_rise.constants import EDGE_RESOLUTION_M, LOOSE_TO_STRICT_INCREMENT_M,
 from robot_rise.model import Robot
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult, PlanStatus, PostureSequence
-from robot_rise.planning.rrt_blossom import BlossomConfig, rrt_blossom
+from robot_rise.planning.rrt_blossom.search import BlossomConfig, rrt_blossom
 from robot_rise.planning.space import PostureSpace
 from robot_rise.posture import validate_posture
 from robot_rise.validity import Looseness, ValidityChecker, ValidityReport

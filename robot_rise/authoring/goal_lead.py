@@ -1,0 +1,105 @@
+"""Goal-lead clamping: the goals of a saturating (momentum) motion pulled back to what the servos can follow within the envelope.
+
+Motions that need their momentum (``MotionSpec.retime=False``, ``clamp_lead=True``:
+supine_situp_rock, prone_elbow_knees_quick) keep their searched keyframe times;
+:func:`clamp_goal_lead` cuts their torque peaks on all five robustness players instead.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+
+from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.servo import servo_arrays
+from robot_rise.sim.player import Player
+from robot_rise.trajectory import Trajectory
+
+__all__ = [
+    "clamp_goal_lead",
+    "LEAD_CLAMP_RATIO",
+    "LEAD_CLAMP_TARGET",
+    "LEAD_CLAMP_WARM_ITER",
+    "LEAD_CLAMP_MAX_ITER",
+    "LEAD_CLAMP_WINDOW_S",
+    "LEAD_CLAMP_STEP",
+]
+
+log = logging.getLogger(__name__)
+
+LEAD_CLAMP_RATIO = 0.85  # clamp_goal_lead: goals lead the servo by at most the error giving this ratio of the envelope
+LEAD_CLAMP_TARGET = 0.87  # clamp_goal_lead: done when every player's peak torque / envelope is at most this (bound 0.9)
+LEAD_CLAMP_WARM_ITER = 12  # clamp_goal_lead: iterations at the uniform ratio before it is lowered locally
+LEAD_CLAMP_MAX_ITER = 40  # clamp_goal_lead: iterations (each plays every player once)
+LEAD_CLAMP_WINDOW_S = 0.05  # clamp_goal_lead: a violation lowers the ratio of that joint within this window [s]
+LEAD_CLAMP_STEP = 0.02  # clamp_goal_lead: how much a violation lowers the local ratio per iteration
+
+
+def clamp_goal_lead(
+    robot: Robot,
+    trajectory: Trajectory,
+    players: Sequence[Player],
+    *,
+    ratio: float = LEAD_CLAMP_RATIO,
+    target: float = LEAD_CLAMP_TARGET,
+    warm_iter: int = LEAD_CLAMP_WARM_ITER,
+    max_iter: int = LEAD_CLAMP_MAX_ITER,
+    window_s: float = LEAD_CLAMP_WINDOW_S,
+    step: float = LEAD_CLAMP_STEP,
+) -> Trajectory:
+    """Pull the goals of a saturating motion back to what the servos can follow within the envelope.
+
+    A dynamic motion (one that uses momentum) is easiest to author with goals far ahead of the
+    joints: the servos saturate (ratio 1). In position mode the torque is
+    ``tau = tau_stall * (clip(kp e / tau_stall) - w / w0)`` with ``e`` the goal error, so the
+    ratio ``r`` of the envelope is kept by ``e`` in
+    ``[(-r + (1 - r) w / w0), (r + (1 - r) w / w0)] * tau_stall / kp`` (``+`` side: room
+    ``tau_stall (1 - w / w0)``, braking side: ``tau_stall (1 + w / w0)``). Each iteration plays
+    the motion on every player, and clips each authored goal into the intersection over the
+    players of ``q(t) + [e_min, e_max]`` at the simulated joint angle ``q`` and speed ``w``; the
+    motion is then played again (the joints move less fast with less torque) until it converges.
+    After ``warm_iter`` iterations, wherever a player still exceeds ``target`` (impacts, fast
+    speed changes within a row), the ratio of that joint within ``window_s`` is lowered by
+    ``step``. The motion keeps its timing: only the torque peaks are cut.
+
+    Args:
+        trajectory: the authored motion (rows at ``robot_rise.authoring.keyframes.ROW_HZ``), joint goals [rad].
+        players: nominal and the friction/mass corners.
+
+    Returns:
+        the clamped trajectory (same rows, new goals; the first row unchanged). The caller verifies it.
+    """
+    sv = servo_arrays(robot.servo_specs(), SUPPLY_VOLTAGE_V)
+    kp, stall, w0 = sv.kp_nm_per_rad, sv.stall_torque_nm, sv.no_load_speed_rad_s
+    t = trajectory.t
+    base = trajectory.q
+    goals = base.copy()
+    r = np.full(base.shape, ratio)
+    n = base.shape[1]
+    for it in range(max_iter):
+        cur = Trajectory(trajectory.robot, trajectory.joint_names, t, goals, trajectory.start)
+        lo = np.full(base.shape, -np.inf)
+        hi = np.full(base.shape, np.inf)
+        over = np.zeros(base.shape, dtype=bool)
+        peaks = []
+        for player in players:
+            rec = player.play(cur)
+            peaks.append(rec.peak_envelope_ratio)
+            q = np.stack([np.interp(t, rec.t, rec.q[:, j]) for j in range(n)], axis=-1)
+            w = np.stack([np.interp(t, rec.t, rec.qd[:, j]) for j in range(n)], axis=-1)
+            lo = np.maximum(lo, q + (-r + (1 - r) * w / w0) * stall / kp)
+            hi = np.minimum(hi, q + (r + (1 - r) * w / w0) * stall / kp)
+            for k, j in np.argwhere(rec.envelope_ratio > target):
+                over[np.abs(t - rec.t[k]) <= window_s, j] = True
+        log.info("clamp_goal_lead %d: peaks %s", it, " ".join(f"{p:.3f}" for p in peaks))
+        if max(peaks) <= target:
+            break
+        if it >= warm_iter:
+            r = np.where(over, r - step, r)
+        empty = lo > hi  # the players disagree: split the difference
+        mid = 0.5 * (lo + hi)
+        goals = np.clip(base, np.where(empty, mid, lo), np.where(empty, mid, hi))
+        goals[0] = base[0]
+    return Trajectory(trajectory.robot, trajectory.joint_names, t, goals, trajectory.start)

@@ -1,0 +1,66 @@
+"""The dynamics filter: turn a planned path + library motion into servo targets proven in MuJoCo.
+
+Paper 000 section 4.3 tracks the smoothed plan in a physics engine and connects it to the
+database motion at the most similar frame with blending; here the servo model is the tracking
+controller and the filter reshapes the targets, never the physics. One concept per module:
+
+- ``config``: ``FilterConfig``, the filter's tuning.
+- ``join``: the plan joined to the library motion with a blend; windows of time stretched.
+- ``violations``: torque, balance and divergence windows of a replay.
+- ``timeline``: the segment (plan, blend, motion, hold) a time falls in; stretches on the feet.
+- ``fall``: why a replay did not end standing.
+- ``slope``: the flat-ground stance turned to sloped ground (paper 000 section 5.2).
+- ``lean``: the lean on arms and feet adapted to a retargeted body (paper 000 section 5.3).
+- ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
+- ``loop``: ``dynamics_filter``, iterating reshape and proof.
+- ``robustness``: replays on deliberately wrong models (``ModelVariant``).
+"""
+
+from __future__ import annotations
+
+from robot_rise.filter.config import FilterConfig
+from robot_rise.filter.fall import describe_fall
+from robot_rise.filter.join import join_with_blend, time_scale
+from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
+from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
+from robot_rise.filter.proof import Permit, Proof, check, execution_permit, prove, scene_digest
+from robot_rise.filter.robustness import ROBUSTNESS_VARIANTS, ModelVariant, stands_under
+from robot_rise.filter.slope import (
+    SLOPE_MIN_RAD,
+    ankle_joints,
+    ground_tilt_vector,
+    leg_joints,
+    slope_ankle_offsets,
+    slope_stance_offsets,
+)
+from robot_rise.filter.violations import Violation, find_violations
+
+__all__ = [
+    "FilterConfig",
+    "Violation",
+    "FilterIteration",
+    "FilterResult",
+    "join_with_blend",
+    "time_scale",
+    "find_violations",
+    "dynamics_filter",
+    "Proof",
+    "Permit",
+    "prove",
+    "check",
+    "execution_permit",
+    "scene_digest",
+    "ModelVariant",
+    "ROBUSTNESS_VARIANTS",
+    "stands_under",
+    "describe_fall",
+    "ground_tilt_vector",
+    "ankle_joints",
+    "slope_ankle_offsets",
+    "slope_stance_offsets",
+    "leg_joints",
+    "SLOPE_MIN_RAD",
+    "torso_pitch_rad",
+    "shoulder_pitch_joints",
+    "lean_offsets",
+]

@@ -1,0 +1,52 @@
+"""The dynamics filter's tuning: one frozen ``FilterConfig`` (margins, tolerances, iteration budget)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
+
+__all__ = ["FilterConfig"]
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Tuning of the dynamics filter.
+
+    Attributes:
+        envelope_margin: torque may use at most (1 - margin) of the torque-speed envelope
+            (issue 6 default 10 %).
+        self_penetration_tolerance_m: self contact deeper than this is a collision; shallower
+            is touching (the validity checker's tolerance, so planner and filter agree).
+        min_zmp_margin_m: the ZMP must stay this far inside the support polygon while on feet [m].
+        balance_tolerance_m: ZMP excursions shallower than this are estimation noise (point-mass
+            ZMP, support polygon from discrete contact points) [m].
+        balance_hold_s: a ZMP excursion counts when it lasts this long [s] (impacts at touchdown
+            are instantaneous and not a loss of balance).
+        soft_iterations: extra iterations spent on balance/divergence violations once the motion
+            is proven (stands, within the envelope); the best proven motion is kept.
+        divergence_rad: tracking error counted as divergence [rad] (default 1.5 x the servo's
+            saturation error: beyond saturation the servo pushes with all it has).
+        divergence_hold_s: how long the error must last to count [s].
+        slow_factor: time stretch applied to an offending window per iteration.
+        window_pad_s: padding around an offending window [s].
+        blend_s: blend duration around the plan-motion join [s].
+        max_iterations: filter iterations before giving up.
+        hold_s: time the final targets are held while the judge watches [s].
+        max_duration_s: never stretch the motion beyond this [s].
+    """
+
+    envelope_margin: float = 0.10
+    self_penetration_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M
+    min_zmp_margin_m: float = 0.0
+    balance_tolerance_m: float = 0.005
+    balance_hold_s: float = 0.1
+    soft_iterations: int = 2
+    divergence_rad: float = 0.33
+    divergence_hold_s: float = 0.4
+    slow_factor: float = 1.6
+    window_pad_s: float = 0.15
+    blend_s: float = 0.3
+    max_iterations: int = 6
+    hold_s: float = 3.0
+    max_duration_s: float = 30.0

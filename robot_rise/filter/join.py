@@ -1,0 +1,55 @@
+"""Reshaping targets in time: join a planned path to a library motion with a blend, stretch windows of time.
+
+Paper 000 section 4.3 connects the smoothed plan to the database motion at the most similar
+frame with blending; dissertation 003 eq. 2.9-2.10's comfort control lowers the speed where
+torque exceeds the limit, which for servo targets is stretching their clock.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robot_rise.trajectory import Trajectory
+
+__all__ = ["join_with_blend", "time_scale"]
+
+
+def join_with_blend(plan: Trajectory, motion: Trajectory, frame: int, *, blend_s: float = 0.3, max_speed_rad_s: float = 2.0) -> Trajectory:
+    """Plan (lying -> connecting posture) followed by the motion from ``frame`` on.
+
+    The plan ends at (or near) the motion's frame ``frame``. The motion's rows from that frame
+    are appended, shifted in time so that the transition from the plan's last row to the
+    motion's frame takes at least ``blend_s`` and no joint moves faster than
+    ``max_speed_rad_s`` across it: the servos' targets interpolate linearly between them, so a
+    mismatch at the join becomes a short blend rather than a step (paper 000 section 4.3).
+
+    Returns:
+        a trajectory with the plan's start posture and joint order; its ``root`` rows are the
+        plan's then the motion's (the library's simulated root) when both have them.
+    """
+    names = plan.joint_names
+    cols = [motion.joint_names.index(j) for j in names]
+    mq = motion.q[frame:, cols]
+    mt = motion.t[frame:] - motion.t[frame]
+    if len(mt) == 0:
+        return plan
+    gap = max(blend_s, float(np.max(np.abs(plan.q[-1] - mq[0]))) / max_speed_rad_s)
+    t = np.concatenate([plan.t, plan.t[-1] + gap + mt])
+    q = np.concatenate([plan.q, mq])
+    # the planned root, then the library's simulated one: the lean the filter adapts the body to
+    root = np.concatenate([plan.root, motion.root[frame:]]) if plan.root is not None and motion.root is not None else None
+    return Trajectory(plan.robot, names, t, q, plan.start, dict(plan.report), root)
+
+
+def time_scale(tr: Trajectory, windows: list[tuple[float, float]], factor: float) -> Trajectory:
+    """Stretch time by ``factor`` inside ``windows`` (trajectory clock, seconds); rows unchanged."""
+    if not windows:
+        return tr
+    t = tr.t
+    dt = np.diff(t)
+    mid = (t[:-1] + t[1:]) / 2
+    scale = np.ones_like(dt)
+    for a, b in windows:
+        scale[(mid >= a) & (mid <= b)] = factor
+    new_t = np.concatenate([[0.0], np.cumsum(dt * scale)])
+    return Trajectory(tr.robot, tr.joint_names, new_t, tr.q, tr.start, tr.report, tr.root)

@@ -1,0 +1,210 @@
+"""The filter loop: reshape servo targets until MuJoCo proves them, or say why not.
+
+Paper 000 section 4.3 tracks the smoothed plan in a physics engine and connects it to the
+database motion at the most similar frame with blending. A robot has no root actuation and its
+strength is its servos', so here the "tracking controller" is the servo model itself (the
+targets ARE what the servos receive) and the filter reshapes the targets, never the physics:
+
+1. join the planned path to the library motion from the connecting frame on, blending the
+   targets over ``blend_s`` around the join (000 section 4.3);
+2. play it through the servo model (robot_rise.sim.player) from the start posture;
+3. find violations: torque beyond (1 - margin) of the torque-speed envelope (dissertation 003
+   eq. 2.2 strength limits; for us the DC-motor envelope), ZMP outside the support polygon while
+   on the feet (003 eq. 2.11-2.14), the motion diverging from the plan (tracking error beyond
+   the servo's saturation for longer than ``divergence_hold_s``: a roll that does not happen, a
+   limb blocked), and finally the standing judge;
+4. reshape: slow the offending windows down (time scaling, 003 eq. 2.9-2.10's comfort control
+   does this by lowering speed where torque exceeds the limit); when the judge fails with no
+   local violation, slow the motion after the join; on sloped ground (paper 000 section 5.2's
+   10 deg slope) the library's flat-ground stance is first turned to the slope: from the moment
+   the robot is on its feet the ankles take up the ground's tilt and the legs' lengths its
+   difference across the feet, in the heading the robot really stands in (``slope.py``), so the
+   body above them stays vertical; a body of other proportions than the library's (paper 000
+   section 5.3, retargeting), propped on its arms and feet at another lean than the library
+   motion, gets its shoulders' pitch offset until its torso leans as the library's did
+   (``lean.py``), so it comes onto its feet with its centre of mass over them;
+5. iterate until everything passes or ``max_iterations`` is reached, then say why not.
+
+The output trajectory holds the commanded targets (not the plan) and a report proving them: the
+``Proof``'s entries, then the filter's own (``filter_iterations``, ``filter_history``, and
+``slope_stance`` / ``lean_adapted`` when it turned the stance or adapted the lean).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robot_rise.filter.config import FilterConfig
+from robot_rise.filter.join import time_scale
+from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
+from robot_rise.filter.proof import Proof, prove_with_violations
+from robot_rise.filter.slope import SLOPE_MIN_RAD, ground_tilt_vector, turn_stance_to_slope
+from robot_rise.filter.violations import saturation_rad
+from robot_rise.model import Robot
+from robot_rise.posture import Posture
+from robot_rise.sim.player import Player, Recording
+from robot_rise.sim.standing import StandVerdict
+from robot_rise.trajectory import Trajectory
+
+__all__ = ["FilterIteration", "FilterResult", "dynamics_filter"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FilterIteration:
+    """What one iteration saw."""
+
+    iteration: int
+    duration_s: float
+    peak_envelope_ratio: float
+    standing: bool
+    violations: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """Outcome of the filter: the commanded trajectory (with its proof report) and the evidence.
+
+    Attributes:
+        proven: the final trajectory is proven (``proof.proven``).
+        trajectory: the final commanded targets; its report holds ``report``.
+        recording: the final trajectory's replay.
+        verdict: the judge's verdict on it.
+        proof: its proof.
+        iterations: what each iteration saw.
+        reason: why not proven (empty when proven).
+        report: the proof's entries and the filter's (iterations, history, slope stance, lean).
+    """
+
+    proven: bool
+    trajectory: Trajectory
+    recording: Recording
+    verdict: StandVerdict
+    proof: Proof
+    iterations: tuple[FilterIteration, ...]
+    reason: str = ""
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def dynamics_filter(
+    robot: Robot,
+    commanded: Trajectory,
+    *,
+    scene: str | os.PathLike[str] | None = "flat",
+    config: FilterConfig = FilterConfig(),
+    start: Posture | None = None,
+    protect_until_s: float = 0.0,
+    progress: Callable[[int, int], None] | None = None,
+) -> FilterResult:
+    """Reshape ``commanded`` until it stands the robot up within the servo limits, or say why not.
+
+    Args:
+        robot: the robot.
+        commanded: first guess of the servo targets (e.g. join_with_blend(plan, motion, frame)).
+        scene: scene the motion is proven in.
+        config: filter tuning.
+        start: the posture the robot really lies in (default: commanded.start).
+        protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
+        progress: called as progress(iteration, max_iterations).
+
+    Returns:
+        FilterResult whose trajectory holds the final commanded targets and the proof report
+        (the best proven iteration's, else the last one's).
+    """
+    start = start or commanded.start
+    player = Player(robot, scene)
+    saturation = saturation_rad(robot)
+    current = commanded
+    history: list[FilterIteration] = []
+    best: tuple[Trajectory, Recording, StandVerdict, Proof] | None = None  # best proven so far
+    best_violations = 0  # how many violations the best proven one still has (fewer is better)
+    last: tuple[Trajectory, Recording, StandVerdict, Proof] | None = None
+    soft = 0
+    tilt = ground_tilt_vector(player.model, player.index.ground_geoms)
+    slope_pending = float(np.linalg.norm(tilt)) >= SLOPE_MIN_RAD
+    slope_info: dict[str, Any] | None = None
+    levers = arm_levers(robot, player.model, player.index.robot_geoms)
+    trunk = np.flatnonzero(player.model.geom_bodyid[player.index.robot_geoms] == player.index.root_body)
+    lean_total = np.zeros_like(current.q)
+    lean_used = 0  # lean adaptations so far (at most LEAN_ITERATIONS); each one earns an extra iteration
+    lean_info: dict[str, Any] | None = None
+    it = 0
+    while it < config.max_iterations + lean_used:
+        it += 1
+        rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config, player=player, start=start, saturation_rad=saturation)
+        if slope_pending and not proof.proven:
+            # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
+            slope_pending = False
+            turned = turn_stance_to_slope(robot, current, rec, player.model, tilt)
+            if turned is not None:
+                history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, ("stance turned to the slope",)))
+                log.info("filter iteration %d: stance turned to the slope: %s", it, turned[1])
+                last = (current, rec, verdict, proof)
+                current, slope_info = turned
+                continue
+        violations = [v for v in found if v.t_start_s <= current.duration_s]
+        if lean_used < LEAN_ITERATIONS and not verdict.standing and current.root is not None and not any(v.kind == "torque" for v in violations):
+            # torque first (time scaling changes how the body moves); then a lean other than the library's on arms and feet
+            adapted = adapt_lean(robot, current, rec, levers, trunk, lean_total)
+            if adapted is not None:
+                lean_used += 1
+                history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, (f"lean on arms and feet adapted (error {math.degrees(adapted[2]):.1f} deg)",)))
+                log.info("filter iteration %d: lean on arms and feet adapted, error %.1f deg", it, math.degrees(adapted[2]))
+                last = (current, rec, verdict, proof)
+                current, lean_total = adapted[0], adapted[1]
+                lean_info = {"shoulder_joints": [lv.joint for lv in levers], "max_offset_rad": float(np.max(np.abs(lean_total))), "iterations": lean_used}
+                continue
+        history.append(
+            FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, tuple(v.describe() for v in violations))
+        )
+        log.info("filter iteration %d: %s; %d violations", it, verdict.summary(), len(violations))
+        if progress is not None:
+            progress(it, config.max_iterations)
+        last = (current, rec, verdict, proof)
+        if proof.proven:
+            if best is None or len(violations) < best_violations:
+                best, best_violations = (current, rec, verdict, proof), len(violations)
+            if not violations:
+                break
+            soft += 1
+            if soft > config.soft_iterations:
+                break
+        windows = [
+            (max(v.t_start_s - config.window_pad_s, protect_until_s), min(v.t_end_s + config.window_pad_s, current.duration_s))
+            for v in violations
+        ]
+        windows = [(a, b) for a, b in windows if b > a]
+        if not windows and not proof.proven:
+            # failed without a local cause: slow down everything after the protected part
+            windows = [(protect_until_s, current.duration_s)]
+        if not windows:
+            break
+        stretched = time_scale(current, windows, config.slow_factor)
+        if stretched.duration_s > config.max_duration_s:
+            break
+        current = stretched
+    assert last is not None
+    current, rec, verdict, proof = best if best is not None else last
+    ok = proof.proven
+    reason = "" if ok else "; ".join(proof.problems) + (f" (after {len(history)} filter iterations)")
+    full_report = {
+        **proof.to_dict(),
+        **({"slope_stance": slope_info} if slope_info is not None else {}),
+        **({"lean_adapted": lean_info} if lean_info is not None else {}),
+        "filter_iterations": len(history),
+        "filter_history": [
+            {"iteration": h.iteration, "duration_s": h.duration_s, "peak_torque_ratio": h.peak_envelope_ratio, "standing": h.standing, "violations": list(h.violations)}
+            for h in history
+        ],
+    }
+    final = Trajectory(robot.name, current.joint_names, current.t, current.q, start, {**current.report, **full_report}, None)
+    return FilterResult(ok, final, rec, verdict, proof, tuple(history), reason, full_report)
+

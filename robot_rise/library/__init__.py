@@ -1,0 +1,28 @@
+"""The motion library: motions as data (loading), the frames to join them at, and connecting-posture selection.
+
+- :mod:`~robot_rise.library.motions`: ``index.json`` and its motions, read and validated.
+- :mod:`~robot_rise.library.frames`: candidate frames and the posture metric over them.
+- :mod:`~robot_rise.library.tree`: the K-means tree that finds the nearest frame.
+- :mod:`~robot_rise.library.selection`: the connecting posture for a lying robot.
+"""
+
+from robot_rise.library.frames import Connection, FrameIndex
+from robot_rise.library.motions import LIBRARY_FORMAT, LYING_KINDS, Motion, MotionLibrary, default_library_dir, load_library
+from robot_rise.library.selection import connection_posture, select_connecting_posture
+from robot_rise.library.tree import TREE_BRANCHING, TREE_LEAF_SIZE, KMeansTree
+
+__all__ = [
+    "LIBRARY_FORMAT",
+    "LYING_KINDS",
+    "Motion",
+    "MotionLibrary",
+    "load_library",
+    "default_library_dir",
+    "FrameIndex",
+    "Connection",
+    "KMeansTree",
+    "TREE_BRANCHING",
+    "TREE_LEAF_SIZE",
+    "select_connecting_posture",
+    "connection_posture",
+]

@@ -1,0 +1,118 @@
+"""The motion library as files: ``index.json`` and the motions it names, read and validated.
+
+A library directory holds ``index.json`` (format ``robot-rise/motion-library@1``) naming, per
+motion, a trajectory file (``robot-rise/trajectory@1`` with the simulated ``root`` pose per row), its
+start posture file and ``connect_until_s``, the end of the lying-to-sitting/squatting phase.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from robot_rise.errors import FormatError
+from robot_rise.paths import configs_dir
+from robot_rise.posture import Posture, read_posture
+from robot_rise.trajectory import Trajectory, read_trajectory
+
+__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "Motion", "MotionLibrary", "load_library", "default_library_dir"]
+
+LIBRARY_FORMAT = "robot-rise/motion-library@1"
+LYING_KINDS = ("supine", "prone", "left", "right")
+
+
+def default_library_dir(robot_name: str = "op3") -> Path:
+    """The shipped library of a robot: ``configs/motions/<robot>``."""
+    return configs_dir() / "motions" / robot_name
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One library motion.
+
+    Attributes:
+        name: motion name (file stem).
+        lying: ``supine``, ``prone``, ``left`` or ``right``.
+        strategy: one line for people.
+        trajectory: the joint-target trajectory (with the simulated root pose per row).
+        start: the settled lying posture it starts from.
+        connect_until_s: end of the lying-to-sitting/squatting phase [s].
+    """
+
+    name: str
+    lying: str
+    strategy: str
+    trajectory: Trajectory
+    start: Posture
+    connect_until_s: float
+
+    @property
+    def duration_s(self) -> float:
+        return self.trajectory.duration_s
+
+
+@dataclass(frozen=True)
+class MotionLibrary:
+    """The motions of one robot, in index order."""
+
+    robot: str
+    directory: Path
+    motions: tuple[Motion, ...]
+
+    def names(self) -> list[str]:
+        return [m.name for m in self.motions]
+
+    def get(self, name: str) -> Motion:
+        """The motion called ``name``; FormatError listing the names otherwise."""
+        for m in self.motions:
+            if m.name == name:
+                return m
+        raise FormatError(f"no motion {name!r} in {self.directory}; motions: {', '.join(self.names())}")
+
+
+def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name: str = "op3") -> MotionLibrary:
+    """Read a library directory (default: the shipped one) and validate every file it names.
+
+    Raises:
+        FormatError: the index or a motion file is missing or malformed (the message names it).
+    """
+    root = Path(directory) if directory is not None else default_library_dir(robot_name)
+    path = root / "index.json"
+    try:
+        obj = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FormatError(f"{path}: no motion library index", hint="regenerate with: robot-rise library author") from None
+    except json.JSONDecodeError as e:
+        raise FormatError(f"{path}: not valid JSON ({e})") from None
+    if not isinstance(obj, dict) or obj.get("format") != LIBRARY_FORMAT:
+        got = obj.get("format") if isinstance(obj, dict) else None
+        raise FormatError(f"{path}: format is {got!r}, expected {LIBRARY_FORMAT!r}")
+    rows = obj.get("motions")
+    if not isinstance(rows, list) or not rows:
+        raise FormatError(f"{path}: 'motions' must be a non-empty list")
+    motions = []
+    seen: set[str] = set()
+    for i, row in enumerate(rows):
+        where = f"{path}: motions[{i}]"
+        if not isinstance(row, dict):
+            raise FormatError(f"{where}: expected an object")
+        for key in ("name", "lying", "trajectory", "start", "connect_until_s"):
+            if key not in row:
+                raise FormatError(f"{where}: missing field {key!r}")
+        name = str(row["name"])
+        if name in seen:
+            raise FormatError(f"{where}: motion name {name!r} appears twice")
+        seen.add(name)
+        if row["lying"] not in LYING_KINDS:
+            raise FormatError(f"{where}: lying is {row['lying']!r}; expected one of {', '.join(LYING_KINDS)}")
+        tr = read_trajectory(root / str(row["trajectory"]))
+        start = read_posture(root / str(row["start"]))
+        if tr.root is None:
+            raise FormatError(f"{root / str(row['trajectory'])}: library motions need the simulated 'root' pose per row")
+        cut = float(row["connect_until_s"])
+        if not 0.0 < cut <= tr.duration_s:
+            raise FormatError(f"{where}: connect_until_s {cut} must lie in (0, {tr.duration_s}]")
+        motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut))
+    return MotionLibrary(str(obj.get("robot", robot_name)), root, tuple(motions))
