@@ -16,7 +16,7 @@ from drivers.control_table import RAD_PER_TICK, HardwareErrorBits
 from drivers.errors import SafetyError
 from drivers.executor import Executor, ExecutorConfig, interpolate
 from drivers.protocol import Instruction
-from drivers.safety import FaultKind, SafetyLimits, StopPolicy
+from drivers.safety import FaultKind, StopPolicy
 from drivers.servo_map import ServoMap
 from drivers.startup import engage, preflight
 from hil_tests.conftest import Rig, make_rig

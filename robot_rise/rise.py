@@ -8,7 +8,6 @@ result lists every attempt and why it failed.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 import time
@@ -20,9 +19,9 @@ import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import ROBUSTNESS_VARIANTS, FilterConfig, FilterResult, ModelVariant, Proof, dynamics_filter, join_with_blend, prove, stands_under
-from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, load_library
+from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames
 from robot_rise.model import Robot
-from robot_rise.placement import MotionRoom, motion_room, place_near
+from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import plan_trajectory
@@ -36,9 +35,6 @@ __all__ = [
     "RiseResult",
     "RiseContext",
     "rise",
-    "connection_candidates",
-    "connecting_posture",
-    "lying_frames",
     "GoalSelection",
     "select_goal",
 ]
@@ -46,7 +42,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_CANDIDATES = 3  # library motions tried, nearest first
-LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is this close to the start's height
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
@@ -133,70 +128,6 @@ class RiseContext:
         library = library or load_library(robot_name=robot.library)
         index = lying_frames(FrameIndex.build(library, robot), library)
         return cls(robot, scene, ValidityChecker(robot, scene), library, index, KMeansTree(index))
-
-
-def lying_frames(index: FrameIndex, library: MotionLibrary, *, max_rise_m: float = LYING_ROOT_RISE_M) -> FrameIndex:
-    """Only the frames where the robot still lies: root at most ``max_rise_m`` above its start height.
-
-    A human character's root can be guided by virtual forces (paper 000 section 4.3); a robot's
-    cannot: a planned path between two lying postures only moves the joints, so a connecting
-    frame where the motion has already lifted the body (on all fours, kneeling) is one the robot
-    cannot reach from the floor by the plan. Those frames stay out of the selection.
-    """
-    keep = np.zeros(index.size, dtype=bool)
-    for mid, name in enumerate(index.motion_names):
-        motion = library.get(name)
-        rows = np.flatnonzero(index.motion_id == mid)
-        z = motion.trajectory.root[index.frame[rows], 2] if motion.trajectory.root is not None else np.zeros(rows.size)
-        keep[rows] = z <= motion.start.root_pos[2] + max_rise_m
-    rows = np.flatnonzero(keep)
-    fields = {
-        f.name: (getattr(index, f.name)[rows] if isinstance(getattr(index, f.name), np.ndarray) and getattr(index, f.name).shape[:1] == (index.size,) else getattr(index, f.name))
-        for f in dataclasses.fields(index)
-    }
-    return FrameIndex(**fields)
-
-
-def connection_candidates(
-    library: MotionLibrary, robot: Robot, start: Posture, k: int, *, index: FrameIndex | None = None, tree: KMeansTree | None = None
-) -> list[Connection]:
-    """The nearest frame of the ``k`` nearest motions (paper 000 eq. 1), nearest first.
-
-    The very nearest comes from the K-means tree (paper 000 section 4.1); the runners-up per
-    motion from the same frame index.
-    """
-    index = index or FrameIndex.build(library, robot)
-    tree = tree or KMeansTree(index)
-    joints = start.joint_vector(robot.joint_names)
-    best = tree.query(start.root_quat_wxyz, joints)
-    q, jw = index.query_features(start.root_quat_wxyz, joints)
-    d = index.distances(q, jw)
-    out = [best]
-    for mid, name in enumerate(index.motion_names):
-        if name == best.motion:
-            continue
-        rows = np.flatnonzero(index.motion_id == mid)
-        if rows.size:
-            i = int(rows[np.argmin(d[rows])])
-            out.append(index._connection(i, float(d[i]), int(rows.size)))
-    out[1:] = sorted(out[1:], key=lambda c: c.distance)
-    return out[:k]
-
-
-def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connection, start: Posture, checker: ValidityChecker) -> Posture:
-    """The connecting posture of a connection, placed where the robot lies (placement.place_near).
-
-    The planner then plans the root there (paper 000 section 4.2.1 plans the root position when
-    the postures differ in it); the dynamics filter decides whether the robot can get there.
-    """
-    motion = library.get(connection.motion)
-    tr = motion.trajectory
-    cols = [tr.joint_names.index(j) for j in robot.joint_names]
-    root = tr.root[connection.frame] if tr.root is not None else np.concatenate([motion.start.root_pos, motion.start.root_quat_wxyz])
-    # Library targets may graze a limit by rounding; the planner needs a goal inside the limits.
-    joints = np.clip(tr.q[connection.frame, cols], robot.joint_lower, robot.joint_upper)
-    goal = Posture(robot.name, root[:3], root[3:], dict(zip(robot.joint_names, joints)))
-    return place_near(goal, start, checker)
 
 
 @dataclass(frozen=True)

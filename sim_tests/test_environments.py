@@ -19,7 +19,8 @@ from robot_rise.cli import main
 from robot_rise.filter import ankle_joints, ground_tilt_vector, prove, slope_ankle_offsets
 from robot_rise.model import compose, model_index
 from robot_rise.posture import write_posture
-from robot_rise.rise import RiseContext, _motion_room, connection_candidates, connecting_posture, rise
+from robot_rise.library import connecting_posture, connection_candidates
+from robot_rise.rise import RiseContext, _motion_room, rise
 from robot_rise.sampling import sample_lying
 
 # What a failure must name: a constraint with where (segment and time) and which joint or body.

@@ -14,7 +14,7 @@ Problem sets:
 
 - ``lying60``: the paper 000 section 5 protocol, 60 settled lying postures on flat ground
   (``sample_lying``, fixed seed: 20 supine, 20 prone, 10 left, 10 right) to their LIBRARY
-  connecting postures: the nearest library frame (``connection_candidates(..., k=1)`` of
+  connecting postures: the nearest library frame (``robot_rise.library.connection_candidates(..., k=1)`` of
   robot_rise.rise, over the lying frames of ``RiseContext``), placed where the robot lies
   (``connecting_posture``), exactly as ``robot-rise rise`` selects its first candidate.
 
@@ -259,7 +259,8 @@ def lying60_problems(robot: Robot, checker: ValidityChecker, *, seed: int = 1, p
     can reach it; ``rise`` then moves on to its next candidate, and so do we (nearest legal one of
     the ``DEFAULT_CANDIDATES`` candidates; each problem's ``goal_rank`` and ``goal_frame`` record which).
     """
-    from robot_rise.rise import DEFAULT_CANDIDATES, RiseContext, connecting_posture, connection_candidates
+    from robot_rise.library import connecting_posture, connection_candidates
+    from robot_rise.rise import DEFAULT_CANDIDATES, RiseContext
     from robot_rise.sampling import sample_lying
 
     ctx = RiseContext.build(robot, "flat")

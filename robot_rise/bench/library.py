@@ -18,7 +18,6 @@ from robot_rise.sim.standing import judge
 from robot_rise.library import FrameIndex, KMeansTree, MotionLibrary
 from robot_rise.model import Robot
 from robot_rise.posture import quat_multiply
-from robot_rise.sim.player import Player
 
 __all__ = ["MotionFigures", "SelectionBench", "LibraryBench", "random_lying_postures", "bench_motions", "bench_selection"]
 

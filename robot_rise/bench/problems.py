@@ -83,18 +83,15 @@ def fallback_connecting_posture(robot: Robot) -> Posture:
 
 
 def connecting_posture_for(start: Posture, checker: ValidityChecker) -> Posture:
-    """Connecting posture for a lying posture: library selection if available, else the fallback crouch."""
-    try:  # the motion library (issue: library) may not exist yet
-        from robot_rise import library  # type: ignore[attr-defined]
+    """Connecting posture for a lying posture: library selection (the one ``rise`` uses); the
+    fallback crouch for a robot without a motion library."""
+    from robot_rise.errors import FormatError
+    from robot_rise.library import select_connecting_posture
 
-        select = getattr(library, "select_connecting_posture", None)
-    except ImportError:
-        select = None
-    if select is not None:
-        try:
-            return select(start, checker.robot)
-        except Exception as e:  # library under construction: fall back, say so
-            log.warning("library selection failed (%s); using the fallback crouch", e)
+    try:
+        return select_connecting_posture(start, checker.robot)
+    except FormatError as e:  # no library for this robot
+        log.warning("library selection failed (%s); using the fallback crouch", e)
     return align_to_start(fallback_connecting_posture(checker.robot), start, checker)
 
 

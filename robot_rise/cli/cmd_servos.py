@@ -6,7 +6,6 @@ import argparse
 import math
 import sys
 
-import numpy as np
 
 from robot_rise.cli._common import Formatter
 

@@ -8,7 +8,7 @@
 
 from robot_rise.library.frames import Connection, FrameIndex
 from robot_rise.library.motions import LIBRARY_FORMAT, LYING_KINDS, Motion, MotionLibrary, default_library_dir, load_library
-from robot_rise.library.selection import connection_posture, select_connecting_posture
+from robot_rise.library.selection import LYING_ROOT_RISE_M, connecting_posture, connection_candidates, lying_frames, select_connecting_posture
 from robot_rise.library.tree import TREE_BRANCHING, TREE_LEAF_SIZE, KMeansTree
 
 __all__ = [
@@ -24,5 +24,8 @@ __all__ = [
     "TREE_BRANCHING",
     "TREE_LEAF_SIZE",
     "select_connecting_posture",
-    "connection_posture",
+    "connection_candidates",
+    "connecting_posture",
+    "lying_frames",
+    "LYING_ROOT_RISE_M",
 ]

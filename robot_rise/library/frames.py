@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robot_rise.errors import FormatError
 from robot_rise.library.motions import MotionLibrary
 from robot_rise.model import Robot
 from robot_rise.posture import quat_multiply

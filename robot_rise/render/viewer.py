@@ -6,7 +6,6 @@ import math
 import os
 import time
 
-import mujoco
 import numpy as np
 
 from robot_rise.model import Robot, compose, model_index

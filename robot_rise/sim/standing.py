@@ -4,19 +4,17 @@ Standing (issue 4, numbers in ``robot_rise/constants.py``): torso tilt <= 15 deg
 torso height >= 90 % of the ``stand`` keyframe's, only the feet touch the world (the ground, or
 an obstacle stood on such as a low bed: paper 000 section 5.2), all of it held for 2 s with the
 velocities settled. The judge reads a :class:`robot_rise.sim.Recording`.
-Balance measures (ZMP, support polygon) come from :mod:`robot_rise.sim.balance`.
+The ZMP margin it reports comes from the recording (:mod:`robot_rise.sim.balance` computes it).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robot_rise.constants import STAND_HOLD_S, STAND_MAX_TILT_RAD, STAND_MIN_HEIGHT_FRACTION
-from robot_rise.sim.balance import support_margin
 
 if TYPE_CHECKING:
     from robot_rise.sim.player import Recording
