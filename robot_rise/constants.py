@@ -36,6 +36,10 @@ GLI_SAFE_ZONE_THRESHOLD = 0.3  # max-abs GLI difference for linear interpolation
 STAND_MAX_TILT_RAD = math.radians(15.0)
 STAND_MIN_HEIGHT_FRACTION = 0.90
 STAND_HOLD_S = 2.0
+# Envelope margin (issue 4): peak servo torque stays within 1 - 0.10 = 0.9 of the torque-speed
+# envelope at every physics step, 10 % kept for what the model does not know. The filter's default,
+# the library's authoring bound and `library play`'s verdict all read this one number.
+ENVELOPE_MARGIN = 0.10
 
 # --- Planner (robot_rise/planning, issue 5) --------------------------------------------------------
 # Ours: the planner distance adds the root position to eq. (1). Rotating the whole body by a full

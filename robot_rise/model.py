@@ -23,7 +23,7 @@ import numpy as np
 from robot_rise.constants import METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
 from robot_rise.errors import ConfigError, SceneError
 from robot_rise.paths import default_robot_dir, scene_path
-from robot_rise.servo import ServoSpec, servo_spec
+from robot_rise.servo import ServoDatasheet, servo_datasheet
 
 __all__ = [
     "Robot",
@@ -117,9 +117,9 @@ class Robot:
         except ValueError:
             raise ConfigError(f"robot {self.name} has no joint {name!r}; joints: {', '.join(self.joint_names)}") from None
 
-    def servo_specs(self) -> tuple[ServoSpec, ...]:
+    def servo_datasheets(self) -> tuple[ServoDatasheet, ...]:
         """Servo spec per joint, in joint order."""
-        return tuple(servo_spec(s.model) for s in self.servos)
+        return tuple(servo_datasheet(s.model) for s in self.servos)
 
     @cached_property
     def stand_height_m(self) -> float:
@@ -266,7 +266,7 @@ def _load_servos(path: Path, joint_names: tuple[str, ...], lower: np.ndarray, up
             raise ConfigError(
                 f"{path}: servo {s.id} ({s.joint}) limits [{s.lower}, {s.upper}] must lie inside the model range [{lower[i]}, {upper[i]}]"
             )
-        servo_spec(s.model)  # raises on an unknown model
+        servo_datasheet(s.model)  # raises on an unknown model
         by_joint[s.joint] = s
         ids.add(s.id)
     missing = [j for j in joint_names if j not in by_joint]
@@ -380,7 +380,7 @@ def compose(
                 if el.name.startswith(_ATTACH_PREFIX):
                     el.name = el.name[len(_ATTACH_PREFIX) :]
     if with_actuators:
-        for s, servo in zip(robot.servos, robot.servo_specs()):
+        for s, servo in zip(robot.servos, robot.servo_datasheets()):
             j = spec.joint(s.joint)
             j.damping[0] = servo.back_emf_damping_nm_s + servo.viscous_damping_nm_s
             j.armature = servo.armature_kg_m2

@@ -32,9 +32,9 @@ import numpy as np
 from robot_rise.errors import ConfigError
 
 __all__ = [
-    "ServoSpec",
-    "SERVO_SPECS",
-    "servo_spec",
+    "ServoDatasheet",
+    "SERVO_DATASHEETS",
+    "servo_datasheet",
     "TICKS_PER_REV",
     "PWM_LIMIT",
     "torque_limits",
@@ -49,7 +49,7 @@ PWM_LIMIT = 885  # PWM register value for 100 % duty
 
 
 @dataclass(frozen=True)
-class ServoSpec:
+class ServoDatasheet:
     """Performance of one servo model at its nominal voltage.
 
     Attributes:
@@ -112,10 +112,10 @@ def _rpm(x: float) -> float:
     return x * 2 * math.pi / 60.0
 
 
-SERVO_SPECS: dict[str, ServoSpec] = {
+SERVO_DATASHEETS: dict[str, ServoDatasheet] = {
     s.model: s
     for s in (
-        ServoSpec(
+        ServoDatasheet(
             model="XM430-W350",
             nominal_voltage_v=12.0,
             stall_torque_nm=4.1,  # e-manual: 4.1 N m at 12 V, 2.3 A
@@ -130,7 +130,7 @@ SERVO_SPECS: dict[str, ServoSpec] = {
             viscous_damping_nm_s=0.05,
             notes="ROBOTIS e-manual XM430-W350; armature estimated",
         ),
-        ServoSpec(
+        ServoDatasheet(
             model="XL430-W250",
             nominal_voltage_v=12.0,
             stall_torque_nm=1.5,  # e-manual: 1.5 N m at 12 V (1.4 at 11.1 V)
@@ -143,7 +143,7 @@ SERVO_SPECS: dict[str, ServoSpec] = {
             viscous_damping_nm_s=0.03,
             notes="ROBOTIS e-manual XL430-W250; armature estimated",
         ),
-        ServoSpec(
+        ServoDatasheet(
             model="XM540-W270",
             nominal_voltage_v=12.0,
             stall_torque_nm=10.6,  # e-manual: 10.6 N m at 12 V
@@ -156,7 +156,7 @@ SERVO_SPECS: dict[str, ServoSpec] = {
             viscous_damping_nm_s=0.08,
             notes="ROBOTIS e-manual XM540-W270; armature estimated",
         ),
-        ServoSpec(
+        ServoDatasheet(
             model="MX-28(2.0)",
             nominal_voltage_v=12.0,
             stall_torque_nm=2.5,  # e-manual: 2.5 N m at 12 V
@@ -173,14 +173,14 @@ SERVO_SPECS: dict[str, ServoSpec] = {
 }
 
 
-def servo_spec(model: str) -> ServoSpec:
+def servo_datasheet(model: str) -> ServoDatasheet:
     """Return the spec of a servo model, or raise ConfigError listing the known models."""
     try:
-        return SERVO_SPECS[model]
+        return SERVO_DATASHEETS[model]
     except KeyError:
         raise ConfigError(
-            f"unknown servo model {model!r}; known: {', '.join(sorted(SERVO_SPECS))}",
-            hint="add its numbers to robot_rise/servo.py SERVO_SPECS",
+            f"unknown servo model {model!r}; known: {', '.join(sorted(SERVO_DATASHEETS))}",
+            hint="add its numbers to robot_rise/servo.py SERVO_DATASHEETS",
         ) from None
 
 
@@ -269,7 +269,7 @@ class ServoArrays:
         return envelope_ratio(motor_torque_nm, velocity_rad_s, self.stall_torque_nm, self.no_load_speed_rad_s)
 
 
-def servo_arrays(specs: tuple[ServoSpec, ...] | list[ServoSpec], voltage_v: float) -> ServoArrays:
+def servo_arrays(specs: tuple[ServoDatasheet, ...] | list[ServoDatasheet], voltage_v: float) -> ServoArrays:
     """Stack the per-joint servo numbers at ``voltage_v`` [V] into :class:`ServoArrays`."""
 
     def ro(values: list[float]) -> np.ndarray:

@@ -9,7 +9,7 @@ import pytest
 
 from robot_rise.errors import ConfigError
 from robot_rise.model import compose, load_robot, model_index
-from robot_rise.servo import servo_spec
+from robot_rise.servo import servo_datasheet
 
 
 def test_default_robot_has_twenty_limited_joints_and_op3_mass_and_height(robot):
@@ -34,7 +34,7 @@ def test_servo_ids_are_one_to_twenty_and_limits_inside_model_ranges(robot):
 
 def test_actuators_reproduce_the_xm430_envelope_numbers(robot):
     m = compose(robot, "flat")
-    spec = servo_spec("XM430-W350")
+    spec = servo_datasheet("XM430-W350")
     kp = spec.position_gain_nm_per_rad(12.0)
     # 800/128 PWM/tick * 4096/2pi tick/rad * 4.1/885 N m/PWM = 18.9 N m/rad (servo.py docstring)
     assert kp == pytest.approx(18.88, abs=0.02)

@@ -7,7 +7,7 @@ import pytest
 from robot_rise.errors import RobotRiseError
 from robot_rise.model import compose, model_index
 from robot_rise.sampling import classify_lying, sample_lying
-from robot_rise.servo import servo_spec
+from robot_rise.servo import servo_datasheet
 from robot_rise.validity import ValidityChecker
 
 
@@ -33,7 +33,7 @@ def test_sampled_postures_are_settled_valid_and_of_the_asked_kind(robot, kind):
             mujoco.mj_step(m, d)
         assert np.max(np.abs(d.qvel)) < 0.05
         assert np.linalg.norm(d.qpos[idx.qpos_root[:3]] - p.root_pos) < 0.02
-        assert np.max(np.abs(d.qpos[idx.qpos_joints] - p.joint_vector(robot.joint_names))) < servo_spec("XM430-W350").saturation_error_rad()
+        assert np.max(np.abs(d.qpos[idx.qpos_joints] - p.joint_vector(robot.joint_names))) < servo_datasheet("XM430-W350").saturation_error_rad()
 
 
 def test_sampling_is_deterministic_for_a_seed_and_differs_across_seeds(robot):

@@ -11,7 +11,7 @@ import pytest
 import robot_rise.servo as servo
 from robot_rise.errors import ConfigError
 from robot_rise.model import compose, load_robot, model_index
-from robot_rise.servo import SERVO_SPECS, envelope_ratio, position_mode_torque, servo_arrays, servo_spec, torque_limits
+from robot_rise.servo import SERVO_DATASHEETS, envelope_ratio, position_mode_torque, servo_arrays, servo_datasheet, torque_limits
 
 
 def test_every_name_in_all_resolves() -> None:
@@ -21,11 +21,11 @@ def test_every_name_in_all_resolves() -> None:
 
 def test_unknown_servo_model_lists_the_known_models() -> None:
     with pytest.raises(ConfigError, match="XM430-W350"):
-        servo_spec("XM999")
+        servo_datasheet("XM999")
 
 
 def test_xm430_effective_stiffness_matches_the_datasheet_derivation() -> None:
-    s = servo_spec("XM430-W350")
+    s = servo_datasheet("XM430-W350")
     # (800 / 128) PWM/tick * 651.9 tick/rad * 4.1 N m / 885 = 18.9 N m/rad (facts: ~19)
     assert s.position_gain_nm_per_rad(12.0) == pytest.approx(18.87, abs=0.05)
     assert s.saturation_error_rad() == pytest.approx(0.217, abs=0.002)
@@ -45,7 +45,7 @@ def test_braking_torque_has_more_room_than_driving_torque() -> None:
 
 def test_position_mode_torque_never_leaves_the_envelope() -> None:
     rng = np.random.default_rng(0)
-    s = servo_spec("XM430-W350")
+    s = servo_datasheet("XM430-W350")
     e = rng.uniform(-1, 1, 1000)
     w = rng.uniform(-s.no_load_speed_rad_s, s.no_load_speed_rad_s, 1000)
     tau = position_mode_torque(e, np.zeros(1000), w, kp_nm_per_rad=18.9, stall_torque_nm=4.1, no_load_speed_rad_s=s.no_load_speed_rad_s)
@@ -53,7 +53,7 @@ def test_position_mode_torque_never_leaves_the_envelope() -> None:
 
 
 def test_servo_arrays_scale_torque_and_speed_with_voltage() -> None:
-    specs = (SERVO_SPECS["XM430-W350"], SERVO_SPECS["XL430-W250"])
+    specs = (SERVO_DATASHEETS["XM430-W350"], SERVO_DATASHEETS["XL430-W250"])
     a12, a6 = servo_arrays(specs, 12.0), servo_arrays(specs, 6.0)
     assert a6.stall_torque_nm == pytest.approx(a12.stall_torque_nm / 2)
     assert a6.no_load_speed_rad_s == pytest.approx(a12.no_load_speed_rad_s / 2)
@@ -66,7 +66,7 @@ def test_mujoco_servo_reproduces_the_dc_motor_torque_speed_line() -> None:
     m = compose(robot, None)
     d = mujoco.MjData(m)
     idx = model_index(m, robot)
-    arrays = servo_arrays(robot.servo_specs(), 12.0)
+    arrays = servo_arrays(robot.servo_datasheets(), 12.0)
     j = robot.joint_index("head_pan")
     d.qpos[idx.qpos_root[3]] = 1.0
     m.opt.gravity[:] = 0

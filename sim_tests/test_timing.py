@@ -25,7 +25,7 @@ def _seq(robot, joints: np.ndarray, z: np.ndarray | None = None) -> PostureSeque
 
 def test_that_the_velocity_limits_come_from_the_servo_no_load_speed(robot):
     lim = TimingLimits.from_robot(robot, speed_fraction=0.5)
-    expected = np.array([s.no_load_speed_rad_s for s in robot.servo_specs()]) * 0.5
+    expected = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * 0.5
     np.testing.assert_allclose(lim.joint_velocity_rad_s, expected)
 
 

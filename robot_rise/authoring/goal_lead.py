@@ -71,7 +71,7 @@ def clamp_goal_lead(
     Returns:
         the clamped trajectory (same rows, new goals; the first row unchanged). The caller verifies it.
     """
-    sv = servo_arrays(robot.servo_specs(), SUPPLY_VOLTAGE_V)
+    sv = servo_arrays(robot.servo_datasheets(), SUPPLY_VOLTAGE_V)
     kp, stall, w0 = sv.kp_nm_per_rad, sv.stall_torque_nm, sv.no_load_speed_rad_s
     t = trajectory.t
     base = trajectory.q

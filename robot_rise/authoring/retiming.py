@@ -49,7 +49,7 @@ def speed_prescale(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...]
     The torque-speed envelope is zero at the no-load speed, so no servo can follow a goal moving
     faster; doing this kinematically (no simulation) gives :func:`retime` a start near the answer.
     """
-    w0 = np.array([s.no_load_speed_at(SUPPLY_VOLTAGE_V) for s in robot.servo_specs()])
+    w0 = np.array([s.no_load_speed_at(SUPPLY_VOLTAGE_V) for s in robot.servo_datasheets()])
     goals = [k.joints for k in keyframes]
     dur = np.diff(np.array([0.0] + [k.t_s for k in keyframes]))
     for _ in range(passes):

@@ -6,6 +6,7 @@ torque-speed envelope, no self collision) before it is written.
 
 from __future__ import annotations
 
+from robot_rise.constants import ENVELOPE_MARGIN
 from robot_rise.model import Robot
 from robot_rise.sim.player import Player
 
@@ -13,7 +14,7 @@ __all__ = ["robustness_players", "ROBUST_FRICTION", "ROBUST_MASS", "TORQUE_BOUND
 
 ROBUST_FRICTION = (0.5, 1.0, 1.2)  # friction scales the library must stand with (issue 4)
 ROBUST_MASS = (0.9, 1.0, 1.1)  # link mass scales the library must stand with (issue 4)
-TORQUE_BOUND = 0.9  # issue 4: peak torque / envelope at every instant, every corner
+TORQUE_BOUND = 1.0 - ENVELOPE_MARGIN  # peak torque / envelope at every instant, every corner (0.9)
 
 
 def robustness_players(robot: Robot) -> list[Player]:

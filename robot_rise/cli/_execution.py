@@ -16,13 +16,13 @@ from robot_rise.errors import RobotRiseError
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
 
-__all__ = ["ExecuteOptions", "execute_trajectory", "WATCHDOG_S"]
+__all__ = ["ExecutionConfig", "execute_trajectory", "WATCHDOG_S"]
 
 WATCHDOG_S = 0.1  # [s] Bus Watchdog armed while streaming: the servos stop if the host goes silent
 
 
 @dataclass(frozen=True)
-class ExecuteOptions:
+class ExecutionConfig:
     """How to execute: where (port or emulator, twin), how fast, with what stop policy and log.
 
     Attributes mirror ``robot-rise execute``'s options (rates in Hz, times in s).
@@ -45,7 +45,7 @@ class ExecuteOptions:
     cpu_idle: bool = False
 
 
-def execute_trajectory(robot: Robot, traj: Trajectory, options: ExecuteOptions) -> int:
+def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) -> int:
     """Check, preflight and stream ``traj`` to ``robot``'s servos; return the exit code.
 
     Returns:
@@ -70,11 +70,11 @@ def execute_trajectory(robot: Robot, traj: Trajectory, options: ExecuteOptions) 
     if traj.robot and traj.robot != robot.name:
         raise RobotRiseError(f"trajectory is for robot {traj.robot!r}, not {robot.name!r}",
                              hint="pass --robot DIR of the robot it was made for")
-    if options.twin and not options.mock:
+    if config.twin and not config.mock:
         raise RobotRiseError("--twin needs --mock (the twin moves emulated servos)")
     permit = execution_permit(traj.report, robot)
     if not permit.allowed:
-        if not options.allow_unproven:
+        if not config.allow_unproven:
             raise RobotRiseError(permit.reason, hint="run it through the dynamics filter, or pass --allow-unproven to run it anyway")
         print(f"warning: {permit.reason}; running anyway (--allow-unproven)", file=sys.stderr)
     else:
@@ -89,34 +89,34 @@ def execute_trajectory(robot: Robot, traj: Trajectory, options: ExecuteOptions) 
             f"trajectory leaves the joint limits: {joint} = {lim.value_rad:.3f} rad at t = "
             f"{float(traj.t[lim.sample_index]):.2f} s (limit {lim.limit_rad:.3f} rad, servos.toml)",
             hint="is it for this robot and in radians? check it with robot-rise check TRAJ")
-    if options.log:  # fail before anything is powered, not after torque is on
+    if config.log:  # fail before anything is powered, not after torque is on
         try:
-            Path(options.log).open("w").close()
+            Path(config.log).open("w").close()
         except OSError as e:
-            raise RobotRiseError(f"cannot write the log {options.log}: {e.strerror or e}") from e
-    port = options.port
+            raise RobotRiseError(f"cannot write the log {config.log}: {e.strerror or e}") from e
+    port = config.port
     twin = None
     clock = None
-    if options.mock:
-        if options.twin:
+    if config.mock:
+        if config.twin:
             from robot_rise.sim.twin import MujocoTwin
 
-            scene = options.scene or traj.report.get("scene") or "flat"
+            scene = config.scene or traj.report.get("scene") or "flat"
             twin = MujocoTwin(robot, scene, start=traj.start)
-            if not options.realtime:
+            if not config.realtime:
                 clock = FakeClock()
             print(f"physics twin: robot {robot.name} in scene {scene}; "
-                  + ("wall clock" if options.realtime else "simulated clock (timing figures are not wall-clock)"))
+                  + ("wall clock" if config.realtime else "simulated clock (timing figures are not wall-clock)"))
             initial = dict(traj.start.joints)
         else:
             initial = dict(zip(traj.joint_names, np.asarray(traj.q)[0]))
         port = mock_url_for(smap, initial_rad=initial, plant=twin, clock=clock)
-    config = ExecutorConfig(rate_hz=options.rate, speed=options.speed, approach_s=options.approach,
-                            stop_policy=StopPolicy(options.stop),
-                            log_path=Path(options.log) if options.log else None,
-                            realtime_priority=options.rt_priority,
-                            cpu_latency_us=None if options.cpu_idle else 0)
-    with connect(smap, port, baud_rate=options.baud) as conn:
+    executor_config = ExecutorConfig(rate_hz=config.rate, speed=config.speed, approach_s=config.approach,
+                                     stop_policy=StopPolicy(config.stop),
+                                     log_path=Path(config.log) if config.log else None,
+                                     realtime_priority=config.rt_priority,
+                                     cpu_latency_us=None if config.cpu_idle else 0)
+    with connect(smap, port, baud_rate=config.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
               f"{'fast' if pre.fast_read else 'plain'} sync read; {conn.latency.note}")
@@ -124,11 +124,11 @@ def execute_trajectory(robot: Robot, traj: Trajectory, options: ExecuteOptions) 
             print(f"error: hardware errors at start: {pre.hardware_errors}", file=sys.stderr)
             print("hint: robot-rise servos reboot ID --port PORT", file=sys.stderr)
             return 2
-        executor = Executor(conn.group, limits, config)
+        executor = Executor(conn.group, limits, executor_config)
         fb = conn.group.read_feedback()
         executor.prepare(traj.joint_names, traj.t, traj.q, fb.position_rad)  # refuses a far start
-        duration = float(traj.t[-1] - traj.t[0]) / options.speed
-        if not options.yes:
+        duration = float(traj.t[-1] - traj.t[0]) / config.speed
+        if not config.yes:
             answer = input(f"stream {duration:.1f} s of motion to {len(smap)} servos on {conn.url}? [y/N] ")
             if answer.strip().lower() not in ("y", "yes"):
                 print("aborted; nothing moved")

@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg
-from robot_rise.cli._execution import ExecuteOptions, execute_trajectory
+from robot_rise.cli._execution import ExecutionConfig, execute_trajectory
 from robot_rise.cli.cmd_report import report_lines
 from robot_rise.errors import RobotRiseError
 from robot_rise.filter import Proof, prove
@@ -63,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
     code = 0 if check.proven else 1
     if not args.no_execute:
         print("4. execute on the emulated Dynamixel bus, servos moved by the MuJoCo twin:")
-        options = ExecuteOptions(mock=True, twin=True, yes=True, log=str(out / "execute_log.csv"))
-        code = code or execute_trajectory(robot, result.trajectory, options)
+        config = ExecutionConfig(mock=True, twin=True, yes=True, log=str(out / "execute_log.csv"))
+        code = code or execute_trajectory(robot, result.trajectory, config)
     report_dir = out / "report"
     report = write_report(robot, result.trajectory, report_dir, scene=args.scene, name=traj.name, progress=Progress("render", 1))
     for line in report_lines(report):

@@ -6,7 +6,7 @@ import argparse
 from dataclasses import fields
 
 from robot_rise.cli._common import Formatter
-from robot_rise.cli._execution import ExecuteOptions, execute_trajectory
+from robot_rise.cli._execution import ExecutionConfig, execute_trajectory
 
 EPILOG = """examples:
   robot-rise execute out/demo/getup.json --mock --yes
@@ -54,5 +54,5 @@ def run(args: argparse.Namespace) -> int:
 
     robot = load_robot(args.robot)
     traj = read_trajectory(args.trajectory)
-    options = ExecuteOptions(**{f.name: getattr(args, f.name.replace("-", "_")) for f in fields(ExecuteOptions)})
-    return execute_trajectory(robot, traj, options)
+    config = ExecutionConfig(**{f.name: getattr(args, f.name) for f in fields(ExecutionConfig)})
+    return execute_trajectory(robot, traj, config)

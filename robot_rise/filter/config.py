@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from robot_rise.constants import ENVELOPE_MARGIN
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 
 __all__ = ["FilterConfig"]
@@ -36,7 +37,7 @@ class FilterConfig:
         max_duration_s: never stretch the motion beyond this [s].
     """
 
-    envelope_margin: float = 0.10
+    envelope_margin: float = ENVELOPE_MARGIN
     self_penetration_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M
     min_zmp_margin_m: float = 0.0
     balance_tolerance_m: float = 0.005

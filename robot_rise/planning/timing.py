@@ -76,7 +76,7 @@ class TimingLimits:
         joint_accel_rad_s2: float = JOINT_ACCEL_LIMIT_RAD_S2,
     ) -> TimingLimits:
         """Per joint: ``speed_fraction`` x its servo's no-load speed; a common acceleration limit."""
-        v = np.array([s.no_load_speed_rad_s for s in robot.servo_specs()]) * speed_fraction
+        v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * speed_fraction
         return cls(v, np.full(robot.n_joints, float(joint_accel_rad_s2)))
 
 

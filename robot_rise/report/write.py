@@ -118,7 +118,7 @@ def write_report(
     images = media.n_images
     sections: list[tuple[str, str]] = [("Replay", media.html)]
 
-    servos = servo_arrays(robot.servo_specs(), SUPPLY_VOLTAGE_V)
+    servos = servo_arrays(robot.servo_datasheets(), SUPPLY_VOLTAGE_V)
     plots = [
         ("Joint targets vs simulated positions", plot_joints(rec), "joint targets and simulated positions"),
         (

@@ -144,7 +144,7 @@ class Player:
         self.index: ModelIndex = model_index(self.model, robot)
         if self.index.actuators.size != robot.n_joints:
             raise RobotRiseError(f"composed model has {self.index.actuators.size} servos for {robot.n_joints} joints")
-        self.servos: ServoArrays = servo_arrays(robot.servo_specs(), voltage_v)
+        self.servos: ServoArrays = servo_arrays(robot.servo_datasheets(), voltage_v)
         m = self.model
         self._torso_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.torso_site)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
