@@ -10,14 +10,19 @@ import numpy as np
 import pytest
 
 import robot_rise.library as library_mod
+from robot_rise.authoring import (
+    MOTION_SPECS,
+    ROBUST_FRICTION,
+    ROBUST_MASS,
+    TORQUE_BOUND,
+)
 from robot_rise.bench.library import random_lying_postures
 from robot_rise.errors import FormatError
-from robot_rise.sim.standing import judge
 from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library
-from robot_rise.authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
 from robot_rise.model import load_robot
 from robot_rise.posture import PostureDistance
 from robot_rise.sim.player import Player
+from robot_rise.sim.standing import judge
 
 STOCK_FRONT_S, STOCK_BACK_S = 3.0, 3.6  # stock OP3 get-up durations (facts/op3.md)
 

@@ -104,3 +104,24 @@ def test_the_readme_example_runs_and_its_trajectory_is_proven(tmp_path, monkeypa
     result = namespace["result"]
     assert result.proven and result.proof is not None and result.proof.proven
     assert (tmp_path / "getup.json").exists()
+
+
+def test_the_readme_layout_names_every_module_and_nothing_that_is_gone():
+    """README's layout section matches the tree: every module and folder is named, each named one exists."""
+    import re
+    from pathlib import Path
+
+    root = Path(robot_rise.__file__).parent.parent
+    readme = (root / "README.md").read_text()
+    layout = readme[readme.index("## Layout"): readme.index("Data flows one way")]
+    named = set(re.findall(r"`([\w/]+(?:\.py)?/?)`", layout))
+    for pkg in ("robot_rise", "drivers"):
+        for path in (root / pkg).rglob("*.py"):
+            if path.name in ("__init__.py", "__main__.py") or "cli" in path.parts or "__pycache__" in path.parts:
+                continue
+            rel = path.relative_to(root / pkg)
+            # a module is named by its file name; a module inside a sub-sub-package by its folder
+            assert path.name in named or (len(rel.parts) > 2 and f"{rel.parts[-2]}/" in named), f"README layout misses {pkg}/{rel}"
+    for name in named:
+        if name.endswith(".py"):
+            assert list(root.glob(f"*/**/{name}")), f"README layout names {name}, which does not exist"

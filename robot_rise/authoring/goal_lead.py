@@ -18,13 +18,13 @@ from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory
 
 __all__ = [
-    "clamp_goal_lead",
+    "LEAD_CLAMP_MAX_ITER",
     "LEAD_CLAMP_RATIO",
+    "LEAD_CLAMP_STEP",
     "LEAD_CLAMP_TARGET",
     "LEAD_CLAMP_WARM_ITER",
-    "LEAD_CLAMP_MAX_ITER",
     "LEAD_CLAMP_WINDOW_S",
-    "LEAD_CLAMP_STEP",
+    "clamp_goal_lead",
 ]
 
 log = logging.getLogger(__name__)

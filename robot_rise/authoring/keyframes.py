@@ -17,7 +17,7 @@ from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
-__all__ = ["Keyframe", "MotionSpec", "build_trajectory", "ROW_HZ"]
+__all__ = ["ROW_HZ", "Keyframe", "MotionSpec", "build_trajectory"]
 
 ROW_HZ = 100.0  # trajectory rows per second (the servo goal update rate) [Hz]
 

@@ -17,7 +17,7 @@ from robot_rise.model import Robot, compose, model_index
 from robot_rise.posture import Posture, posture_from_qpos, quat_multiply
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["quat_lying", "settle", "SETTLE_S", "DROP_CLEARANCE_M"]
+__all__ = ["DROP_CLEARANCE_M", "SETTLE_S", "quat_lying", "settle"]
 
 SETTLE_S = 1.5  # time a dropped lying posture is simulated to come to rest [s]
 DROP_CLEARANCE_M = 0.004  # the lying posture is dropped from this far above the ground [m]

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 
 from robot_rise.authoring.keyframes import Keyframe, MotionSpec
 
-__all__ = ["MOTION_SPECS", "sym", "mirror", "mirror_keyframes"]
+__all__ = ["MOTION_SPECS", "mirror", "mirror_keyframes", "sym"]
 
 _SIDES = (  # OP3 joints that come in pairs, l_<name> and r_<name>
     "sho_pitch", "sho_roll", "el", "hip_yaw", "hip_roll", "hip_pitch", "knee", "ank_pitch", "ank_roll",

@@ -27,14 +27,14 @@ from robot_rise.sim.player import Player
 from robot_rise.sim.standing import judge
 
 __all__ = [
-    "speed_prescale",
-    "subdivide",
-    "retime",
+    "REFINE_MAX_EVALS",
+    "REFINE_STEPS",
     "RETIME_RATIO_TARGET",
     "SPEED_CAP_FRACTION",
     "SUBDIVIDE_S",
-    "REFINE_STEPS",
-    "REFINE_MAX_EVALS",
+    "retime",
+    "speed_prescale",
+    "subdivide",
 ]
 
 log = logging.getLogger(__name__)

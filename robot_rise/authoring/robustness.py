@@ -10,7 +10,7 @@ from robot_rise.constants import ENVELOPE_MARGIN
 from robot_rise.model import Robot
 from robot_rise.sim.player import Player
 
-__all__ = ["robustness_players", "ROBUST_FRICTION", "ROBUST_MASS", "TORQUE_BOUND"]
+__all__ = ["ROBUST_FRICTION", "ROBUST_MASS", "TORQUE_BOUND", "robustness_players"]
 
 ROBUST_FRICTION = (0.5, 1.0, 1.2)  # friction scales the library must stand with (issue 4)
 ROBUST_MASS = (0.9, 1.0, 1.1)  # link mass scales the library must stand with (issue 4)
