@@ -1,7 +1,8 @@
 """The servo map (``servos.toml``, format ``robot-rise/servos@1``) and radians <-> ticks.
 
-This is the only place where joint angles become servo ticks:
-``ticks = 2048 + direction * (angle + zero_offset) * 4096 / (2 pi)``.
+This is the only place where joint angles become servo angles and ticks:
+``servo = direction * (angle + zero_offset)`` (the servo frame, radians) and
+``ticks = 2048 + servo * 4096 / (2 pi)``.
 """
 
 from __future__ import annotations
@@ -113,13 +114,21 @@ class ServoSpec:
         """How messages name this servo: ``joint (id N)``."""
         return f"{self.joint} (id {self.id})"
 
+    def to_servo_frame(self, angle_rad: float) -> float:
+        """Servo-frame angle [rad] (the shaft's own, 0 at 2048 ticks) for joint angle ``angle_rad``."""
+        return self.direction * (angle_rad + self.zero_offset)
+
+    def from_servo_frame(self, servo_rad: float) -> float:
+        """Joint angle [rad] for servo-frame angle ``servo_rad``."""
+        return self.direction * servo_rad - self.zero_offset
+
     def to_ticks(self, angle_rad: float) -> int:
         """Goal position ticks for joint angle ``angle_rad`` [rad]."""
-        return int(round(CENTER_TICKS + self.direction * (angle_rad + self.zero_offset) / RAD_PER_TICK))
+        return int(round(CENTER_TICKS + self.to_servo_frame(angle_rad) / RAD_PER_TICK))
 
     def to_radians(self, ticks: int) -> float:
         """Joint angle [rad] for ``ticks``."""
-        return self.direction * (ticks - CENTER_TICKS) * RAD_PER_TICK - self.zero_offset
+        return self.from_servo_frame((ticks - CENTER_TICKS) * RAD_PER_TICK)
 
     @property
     def limit_ticks(self) -> tuple[int, int]:

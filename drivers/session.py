@@ -18,7 +18,7 @@ from drivers.servo_map import ServoMap
 __all__ = ["Connection", "connect", "mock_bus_for", "mock_url_for"]
 
 if TYPE_CHECKING:
-    from drivers.mockbus import MockBus, Plant
+    from drivers.mockbus import JointPlant, MockBus, Plant
 
 _log = logging.getLogger(__name__)
 _counter = itertools.count()
@@ -50,7 +50,7 @@ class Connection:
 
 def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
                  wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
-                 plant: "Plant | None" = None) -> "MockBus":
+                 plant: "Plant | JointPlant | None" = None) -> "MockBus":
     """An emulated bus holding the servos of ``servo_map`` (at the map's baud rate).
 
     Args:
@@ -59,11 +59,15 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
         wire_timing: replies take their wire time at the map's baud rate.
         clock: the bus clock (default: real time).
         return_delay_units: Return Delay Time of every servo (2 us units).
-        plant: what moves the shafts (default: the kinematic servo model); a physics twin
-            satisfies :class:`drivers.mockbus.Plant` and works in the servo frame.
+        plant: what moves the shafts (default: the kinematic servo model): a
+            :class:`drivers.mockbus.Plant` in the servo frame, or a
+            :class:`drivers.mockbus.JointPlant` (the physics twin), put on the bus through this
+            map (:class:`drivers.mockbus.ServoFramePlant`).
     """
     import drivers.mockbus as mb
 
+    if plant is not None and not isinstance(plant, mb.Plant) and isinstance(plant, mb.JointPlant):
+        plant = mb.ServoFramePlant(plant, servo_map)
     init = {}
     for s in servo_map.servos:
         q = (initial_rad or {}).get(s.joint, 0.0)
@@ -75,7 +79,7 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
 
 def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
                  wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
-                 plant: "Plant | None" = None) -> str:
+                 plant: "Plant | JointPlant | None" = None) -> str:
     """Attach an emulated bus (see :func:`mock_bus_for`) and return its ``dxlsim://`` URL."""
     import drivers.mockbus as mb
 

@@ -10,12 +10,7 @@ import numpy as np
 import pytest
 
 import robot_rise.library as library_mod
-from robot_rise.authoring import (
-    MOTION_SPECS,
-    ROBUST_FRICTION,
-    ROBUST_MASS,
-    TORQUE_BOUND,
-)
+from robot_rise.authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
 from robot_rise.bench.library import random_lying_postures
 from robot_rise.errors import FormatError
 from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library

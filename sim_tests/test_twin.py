@@ -9,7 +9,7 @@ import pytest
 
 from drivers.clock import FakeClock
 from drivers.executor import Executor, ExecutorConfig
-from drivers.mockbus import Plant, ServoCommand
+from drivers.mockbus import JointPlant, Plant, ServoCommand, ServoFramePlant
 from drivers.safety import SafetyLimits
 from drivers.servo_map import load_servo_map
 from drivers.session import connect, mock_url_for
@@ -26,34 +26,44 @@ def twin(robot: Robot) -> MujocoTwin:
     return MujocoTwin(robot, "flat")
 
 
-def test_that_the_twin_satisfies_the_mock_bus_plant_protocol(twin: MujocoTwin) -> None:
-    assert isinstance(twin, Plant)
-    motions = twin.advance(0.004, {})
-    assert set(motions) == set(twin.servo_ids)
+def test_that_the_twin_satisfies_the_mock_bus_joint_plant_protocol(twin: MujocoTwin) -> None:
+    assert isinstance(twin, JointPlant) and not isinstance(twin, Plant)
+    motions = twin.advance_joints(0.004, {})
+    assert set(motions) == set(twin.robot.joint_names)
     assert twin.time_s == pytest.approx(0.004)
 
 
-def test_that_a_reversed_servo_reports_the_mirrored_joint_angle(robot: Robot) -> None:
-    servos = list(robot.servos)
-    k = robot.joint_names.index("l_el")
+def test_that_a_reversed_servo_reports_the_mirrored_joint_angle_through_the_servo_map(robot: Robot) -> None:
+    smap = load_servo_map(robot.directory / "servos.toml")
+    servos = list(smap.servos)
+    k = next(i for i, s in enumerate(servos) if s.joint == "l_el")
     servos[k] = dataclasses.replace(servos[k], direction=-1, zero_offset=0.1)
-    twin = MujocoTwin(dataclasses.replace(robot, servos=tuple(servos)), None)
-    q = twin.joint_positions_rad
-    servo = twin.joint_to_servo_rad(q)
-    assert servo[k] == pytest.approx(-(q[k] + 0.1))
-    np.testing.assert_allclose(twin.servo_to_joint_rad(servo), q)
-    assert twin.initial_servo_rad()[servos[k].id] == pytest.approx(servo[k])
+    smap = dataclasses.replace(smap, servos=tuple(servos))
+    twin = MujocoTwin(robot, None)
+    plant = ServoFramePlant(twin, smap)
+    q = dict(zip(robot.joint_names, twin.joint_positions_rad))
+    motions = plant.advance(0.0, {})
+    assert motions[servos[k].id].position_rad == pytest.approx(-(q["l_el"] + 0.1))
+    assert servos[k].from_servo_frame(motions[servos[k].id].position_rad) == pytest.approx(q["l_el"])
+    # a goal in the servo frame reaches the twin as the joint angle it means
+    start = {s.id: s.to_servo_frame(q[s.joint]) for s in servos}
+    goal_joint = q["l_el"] - 0.3
+    commands = {sid: ServoCommand(True, a, 5.0) for sid, a in start.items()}
+    commands[servos[k].id] = ServoCommand(True, servos[k].to_servo_frame(goal_joint), 5.0)
+    for _ in range(50):
+        plant.advance(0.01, commands)
+    assert twin.joint_positions_rad[robot.joint_names.index("l_el")] == pytest.approx(goal_joint, abs=0.03)
 
 
 def test_that_a_powered_servo_drives_its_joint_to_the_goal(robot: Robot) -> None:
     twin = MujocoTwin(robot, None)  # no ground: the robot floats, joints move freely
-    sid = robot.servos[robot.joint_names.index("r_sho_pitch")].id
-    goal = float(twin.initial_servo_rad()[sid]) + 0.3
-    commands = {s.id: ServoCommand(True, twin.initial_servo_rad()[s.id], 5.0) for s in robot.servos}
-    commands[sid] = ServoCommand(True, goal, 5.0)
+    q = dict(zip(robot.joint_names, twin.joint_positions_rad))
+    goal = q["r_sho_pitch"] + 0.3
+    commands = {j: ServoCommand(True, a, 5.0) for j, a in q.items()}
+    commands["r_sho_pitch"] = ServoCommand(True, goal, 5.0)
     for _ in range(50):
-        motions = twin.advance(0.01, commands)
-    assert motions[sid].position_rad == pytest.approx(goal, abs=0.03)
+        motions = twin.advance_joints(0.01, commands)
+    assert motions["r_sho_pitch"].position_rad == pytest.approx(goal, abs=0.03)
 
 
 def test_that_a_trajectory_streamed_to_the_mock_bus_moves_the_simulated_joints(robot: Robot) -> None:
@@ -85,12 +95,12 @@ def test_that_a_trajectory_streamed_to_the_mock_bus_moves_the_simulated_joints(r
 
 
 def test_that_the_start_posture_is_held_until_the_first_servo_is_torqued_on(robot: Robot) -> None:
-    unpowered = {s.id: ServoCommand(False, 0.0, 5.0) for s in robot.servos}
+    unpowered = {j: ServoCommand(False, 0.0, 5.0) for j in robot.joint_names}
     held = MujocoTwin(robot, "flat")
     limp = MujocoTwin(robot, "flat", hold_start=False)
     for _ in range(25):
-        held.advance(0.02, unpowered)
-        limp.advance(0.02, unpowered)
+        held.advance_joints(0.02, unpowered)
+        limp.advance_joints(0.02, unpowered)
     knee = robot.joint_names.index("l_knee")
     start_knee = stand_posture(robot).joints["l_knee"]
     assert held.joint_positions_rad[knee] == pytest.approx(start_knee, abs=0.08)  # servo compliance under load

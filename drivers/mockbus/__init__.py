@@ -13,7 +13,7 @@ import serial
 
 from drivers.mockbus.emulator import BAUD_BY_INDEX, MockBus, Reply
 from drivers.mockbus.faults import FaultInjector, ScheduledFault
-from drivers.mockbus.plant import KinematicPlant, Plant, ServoCommand, ServoMotion
+from drivers.mockbus.plant import JointPlant, KinematicPlant, Plant, ServoCommand, ServoFramePlant, ServoMotion
 from drivers.mockbus.protocol_dxlsim import attach, attached, detach, parse_ids
 from drivers.mockbus.pty_server import PtyServer, PtyServerProcess, spawn_pty_server
 from drivers.mockbus.emulated_servo import EmulatedServo, ThermalModel
@@ -25,6 +25,8 @@ __all__ = [
     "FaultInjector",
     "ScheduledFault",
     "Plant",
+    "JointPlant",
+    "ServoFramePlant",
     "KinematicPlant",
     "ServoCommand",
     "ServoMotion",

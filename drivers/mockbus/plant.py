@@ -2,11 +2,13 @@
 
 The emulator asks the plant to advance by ``dt`` given each servo's command and reads back
 each shaft's motion. Angles here are in the *servo frame*: ``(ticks - 2048) * 2 pi / 4096`` [rad]
-(no direction or zero offset; the CLI converts when it wires a physics twin through the servo map).
+(no direction or zero offset). A plant that speaks joint angles by joint name, such as the
+physics twin (:class:`JointPlant`), is put on the bus through :class:`ServoFramePlant`, which
+converts with the servo map's own conversion (``drivers.servo_map``: one place for it).
 
 The default :class:`KinematicPlant` is a first-order servo with a speed limit: fast, no MuJoCo.
-The physics twin ``robot_rise.twin.MujocoTwin`` satisfies :class:`Plant` structurally (this
-package never imports ``robot_rise``); ``robot-rise execute --mock --twin`` and
+The physics twin ``robot_rise.sim.twin.MujocoTwin`` satisfies :class:`JointPlant` structurally
+(this package never imports ``robot_rise``); ``robot-rise execute --mock --twin`` and
 ``robot-rise mockbus serve --twin`` wire it in.
 """
 
@@ -14,10 +16,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
-__all__ = ["ServoCommand", "ServoMotion", "Plant", "KinematicPlant"]
+if TYPE_CHECKING:
+    from drivers.servo_map import ServoMap
+
+__all__ = ["ServoCommand", "ServoMotion", "Plant", "JointPlant", "ServoFramePlant", "KinematicPlant"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,53 @@ class Plant(Protocol):
     def advance(self, dt_s: float, commands: Mapping[int, ServoCommand]) -> Mapping[int, ServoMotion]:
         """Integrate ``dt_s`` [s] with ``commands`` (by servo ID); return every servo's motion."""
         ...
+
+
+class MotionLike(Protocol):
+    """A shaft's state as a joint-frame plant reports it (:class:`ServoMotion`'s attributes)."""
+
+    @property
+    def position_rad(self) -> float: ...
+
+    @property
+    def velocity_rad_s(self) -> float: ...
+
+    @property
+    def torque_nm(self) -> float: ...
+
+
+@runtime_checkable
+class JointPlant(Protocol):
+    """A plant in the joint frame: commands and motions by joint name, angles in radians."""
+
+    def advance_joints(self, dt_s: float, commands: Mapping[str, ServoCommand]) -> Mapping[str, MotionLike]:
+        """Integrate ``dt_s`` [s] with ``commands`` (by joint, goal as a joint angle); return every joint's motion."""
+        ...
+
+
+class ServoFramePlant:
+    """A :class:`JointPlant` on the bus: servo IDs and servo-frame angles in, through ``servo_map``.
+
+    Args:
+        plant: the joint-frame plant (e.g. the physics twin).
+        servo_map: which servo drives which joint, with its direction and zero offset.
+    """
+
+    def __init__(self, plant: JointPlant, servo_map: "ServoMap") -> None:
+        self.plant = plant
+        self._by_id = {s.id: s for s in servo_map.servos}
+
+    def advance(self, dt_s: float, commands: Mapping[int, ServoCommand]) -> dict[int, ServoMotion]:
+        by_joint = {self._by_id[sid].joint: replace(cmd, goal_rad=self._by_id[sid].from_servo_frame(cmd.goal_rad))
+                    for sid, cmd in commands.items() if sid in self._by_id}
+        motions = self.plant.advance_joints(dt_s, by_joint)
+        out = {}
+        for sid, servo in self._by_id.items():
+            m = motions.get(servo.joint)
+            if m is not None:  # velocity and torque change sign with the direction, not the offset
+                out[sid] = ServoMotion(servo.to_servo_frame(m.position_rad), servo.direction * m.velocity_rad_s,
+                                       servo.direction * m.torque_nm)
+        return out
 
 
 class KinematicPlant:

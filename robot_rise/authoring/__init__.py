@@ -20,26 +20,11 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
 from __future__ import annotations
 
 from robot_rise.authoring.goal_lead import LEAD_CLAMP_TARGET, clamp_goal_lead
-from robot_rise.authoring.keyframes import (
-    ROW_HZ,
-    Keyframe,
-    MotionSpec,
-    build_trajectory,
-)
+from robot_rise.authoring.keyframes import ROW_HZ, Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import quat_lying, settle
 from robot_rise.authoring.op3_motions import MOTION_SPECS, mirror, mirror_keyframes, sym
-from robot_rise.authoring.retiming import (
-    RETIME_RATIO_TARGET,
-    retime,
-    speed_prescale,
-    subdivide,
-)
-from robot_rise.authoring.robustness import (
-    ROBUST_FRICTION,
-    ROBUST_MASS,
-    TORQUE_BOUND,
-    robustness_players,
-)
+from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
+from robot_rise.authoring.robustness import ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND, robustness_players
 from robot_rise.authoring.write import author_library
 
 __all__ = [

@@ -21,12 +21,7 @@ from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import build_trajectory
 from robot_rise.authoring.lying import settle
 from robot_rise.authoring.op3_motions import MOTION_SPECS
-from robot_rise.authoring.retiming import (
-    RETIME_RATIO_TARGET,
-    retime,
-    speed_prescale,
-    subdivide,
-)
+from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import TORQUE_BOUND, robustness_players
 from robot_rise.library import LIBRARY_FORMAT
 from robot_rise.model import Robot, load_robot

@@ -19,7 +19,7 @@ from robot_rise.report import write_report
 from robot_rise.posture import write_posture
 from robot_rise.rise import rise
 from robot_rise.sampling import classify_lying, sample_lying
-from robot_rise.trajectory import write_trajectory
+from robot_rise.trajectory import read_trajectory, write_trajectory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_execute:
         print("4. execute on the emulated Dynamixel bus, servos moved by the MuJoCo twin:")
         config = ExecutionConfig(mock=True, twin=True, yes=True, log=str(out / "execute_log.csv"))
-        code = code or execute_trajectory(robot, result.trajectory, config)
+        code = code or execute_trajectory(robot, read_trajectory(traj), config)  # what runs is the file
     report_dir = out / "report"
     report = write_report(robot, result.trajectory, report_dir, scene=args.scene, name=traj.name, progress=Progress("render", 1))
     for line in report_lines(report):

@@ -14,7 +14,7 @@ __all__ = ["register"]
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "library",
-        help="inspect, replay and benchmark the get-up motion library",
+        help="inspect, replay, benchmark and author the get-up motion library",
         epilog="Example: robot-rise library play prone_knees_first --friction 0.5 --mass 1.1",
     )
     p.add_argument("--dir", type=Path, default=None, help="library directory (default: configs/motions/<robot>)")

@@ -1,16 +1,13 @@
 """The physics twin: a MuJoCo simulation of the robot that moves the emulated servos.
 
 The mock bus (``drivers.mockbus``) asks its *plant* to advance by ``dt`` given each servo's
-command and reads back each shaft's motion. :class:`MujocoTwin` is such a plant: it satisfies
-``drivers.mockbus.Plant`` structurally (duck typing; this module never imports ``drivers``):
+command and reads back each shaft's motion. :class:`MujocoTwin` is such a plant in the joint
+frame: it satisfies ``drivers.mockbus.JointPlant`` structurally (duck typing; this module never
+imports ``drivers``), and the bus puts it on the servo IDs and servo frame through the servo map:
 
-- ``advance(dt_s, commands)`` takes ``{servo_id: command}`` where a command has the attributes
-  ``torque_on``, ``goal_rad`` (servo frame) and ``pwm_fraction`` (0..1, output limit), and
-  returns ``{servo_id: motion}`` with ``position_rad`` (servo frame), ``velocity_rad_s`` and
-  ``torque_nm``.
-
-The servo frame is the servo's own angle ``(ticks - 2048) * 2 pi / 4096``; the servo map
-(``servos.toml``) relates it to the joint angle: ``servo = direction * (joint + zero_offset)``.
+- ``advance_joints(dt_s, commands)`` takes ``{joint: command}`` where a command has the attributes
+  ``torque_on``, ``goal_rad`` (joint angle) and ``pwm_fraction`` (0..1, output limit), and
+  returns ``{joint: motion}`` with ``position_rad``, ``velocity_rad_s`` and ``torque_nm``.
 
 The simulated robot is the composed model of :func:`robot_rise.model.compose` (robot + scene +
 one position servo per joint, the same servo model the player uses), stepped at its own
@@ -55,12 +52,12 @@ class ServoCommandLike(Protocol):
 
 @dataclass(frozen=True)
 class TwinMotion:
-    """One shaft's state after a step (read by the mock servo).
+    """One joint's state after a step (read by the mock servo through the servo map).
 
     Attributes:
-        position_rad: servo-frame angle [rad].
-        velocity_rad_s: servo-frame velocity [rad/s].
-        torque_nm: motor torque on the shaft [N m], servo frame.
+        position_rad: joint angle [rad].
+        velocity_rad_s: joint velocity [rad/s].
+        torque_nm: motor torque on the joint [N m].
     """
 
     position_rad: float
@@ -102,7 +99,7 @@ class MujocoTwin:
     """A MuJoCo simulation of ``robot`` in ``scene`` driven by servo commands.
 
     Args:
-        robot: the loaded robot (its ``servos`` give IDs, directions and zero offsets).
+        robot: the loaded robot.
         scene: scene name or MJCF path (see :func:`robot_rise.model.compose`).
         start: posture at t = 0, at rest (default: the ``stand`` keyframe).
         voltage_v: servo supply voltage [V].
@@ -128,10 +125,7 @@ class MujocoTwin:
         self._force_limit = m.actuator_forcerange[acts, 1].copy()
         self._ctrl_lo = m.actuator_ctrlrange[acts, 0].copy()
         self._ctrl_hi = m.actuator_ctrlrange[acts, 1].copy()
-        self.servo_ids = tuple(s.id for s in robot.servos)
-        self._column = {s.id: k for k, s in enumerate(robot.servos)}
-        self._direction = np.array([float(s.direction) for s in robot.servos])
-        self._zero_offset = np.array([s.zero_offset for s in robot.servos])
+        self._column = {name: k for k, name in enumerate(robot.joint_names)}
         self._goal = np.zeros(robot.n_joints)
         self._powered = np.zeros(robot.n_joints, dtype=bool)
         self._pwm = np.ones(robot.n_joints)
@@ -141,20 +135,6 @@ class MujocoTwin:
         self._torso_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.torso_site)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
         self.reset(start if start is not None else stand_posture(robot))
-
-    # ---- frames -------------------------------------------------------------------------
-    def servo_to_joint_rad(self, servo_rad: np.ndarray) -> np.ndarray:
-        """Servo-frame angles [rad] in joint order, shape (n,) -> joint angles [rad]."""
-        return self._direction * np.asarray(servo_rad, dtype=float) - self._zero_offset
-
-    def joint_to_servo_rad(self, joint_rad: np.ndarray) -> np.ndarray:
-        """Joint angles [rad], shape (n,) -> servo-frame angles [rad] in joint order."""
-        return self._direction * (np.asarray(joint_rad, dtype=float) + self._zero_offset)
-
-    def initial_servo_rad(self) -> dict[int, float]:
-        """Present servo-frame angle by servo ID [rad] (to start the mock servos where the twin is)."""
-        servo = self.joint_to_servo_rad(self.joint_positions_rad)
-        return {sid: float(servo[k]) for sid, k in self._column.items()}
 
     # ---- state --------------------------------------------------------------------------
     def reset(self, start: Posture) -> None:
@@ -201,8 +181,9 @@ class MujocoTwin:
         )
 
     # ---- the Plant protocol -------------------------------------------------------------
-    def advance(self, dt_s: float, commands: Mapping[int, ServoCommandLike]) -> dict[int, TwinMotion]:
-        """Apply ``commands`` (by servo ID), integrate ``dt_s`` [s], return every servo's motion.
+    def advance_joints(self, dt_s: float, commands: Mapping[str, ServoCommandLike]) -> dict[str, TwinMotion]:
+        """Apply ``commands`` (by joint name, goals as joint angles), integrate ``dt_s`` [s], return
+        every joint's motion.
 
         Time is accumulated: physics steps happen whenever a whole timestep has passed, so
         calls with ``dt_s`` shorter than the timestep are exact on average.
@@ -211,17 +192,17 @@ class MujocoTwin:
             self._holding = False
             log.debug("twin: first servo torqued on; servos now follow their commands")
         if commands and not self._holding:
-            goal_servo = np.zeros(len(self._goal))
+            goal = np.zeros(len(self._goal))
             have = np.zeros(len(self._goal), dtype=bool)
-            for sid, cmd in commands.items():
-                k = self._column.get(sid)
+            for joint, cmd in commands.items():
+                k = self._column.get(joint)
                 if k is None:
                     continue
                 have[k] = True
-                goal_servo[k] = cmd.goal_rad
+                goal[k] = cmd.goal_rad
                 self._powered[k] = bool(cmd.torque_on) and cmd.pwm_fraction > 0.0
                 self._pwm[k] = min(1.0, max(0.0, float(cmd.pwm_fraction)))
-            goal = np.clip(self.servo_to_joint_rad(goal_servo), self._ctrl_lo, self._ctrl_hi)
+            goal = np.clip(goal, self._ctrl_lo, self._ctrl_hi)
             self._goal = np.where(have, goal, self._goal)
             self._apply_servo_state()
         m, d = self.model, self.data
@@ -244,13 +225,9 @@ class MujocoTwin:
         m.actuator_forcerange[acts, 1] = limit
         d.ctrl[acts] = self._goal
 
-    def _motions(self) -> dict[int, TwinMotion]:
+    def _motions(self) -> dict[str, TwinMotion]:
         d = self.data
         q = d.qpos[self.index.qpos_joints]
         qd = d.qvel[self.index.dof_joints]
         force = d.actuator_force[self.index.actuators]
-        servo_q = self.joint_to_servo_rad(q)
-        servo_qd = self._direction * qd
-        servo_tau = self._direction * force
-        return {sid: TwinMotion(float(servo_q[k]), float(servo_qd[k]), float(servo_tau[k]))
-                for sid, k in self._column.items()}
+        return {joint: TwinMotion(float(q[k]), float(qd[k]), float(force[k])) for joint, k in self._column.items()}
