@@ -123,7 +123,7 @@ def _make_crc_table() -> tuple[int, ...]:
 _CRC_TABLE = _make_crc_table()
 
 
-def _crc16_loop(data: bytes | bytearray | memoryview, crc: int) -> int:
+def crc16_loop(data: bytes | bytearray | memoryview, crc: int) -> int:
     """The byte-table CRC, written out: the reference the tests hold :func:`crc16` to."""
     table = _CRC_TABLE
     for b in data:

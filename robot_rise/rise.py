@@ -31,6 +31,7 @@ from robot_rise.sampling import classify_lying
 from robot_rise.validity import Looseness, ValidityChecker
 
 __all__ = [
+    "connection_room",
     "RiseAttempt",
     "RiseResult",
     "RiseContext",
@@ -179,7 +180,7 @@ def select_goal(ctx: RiseContext, start: Posture, key: Posture | None = None) ->
     return GoalSelection(goal, key, source)
 
 
-def _motion_room(context: RiseContext, connection: Connection, goal: Posture) -> MotionRoom:
+def connection_room(context: RiseContext, connection: Connection, goal: Posture) -> MotionRoom:
     """placement.motion_room for a candidate (always ok in a scene without obstacles)."""
     checker = context.obstacle_checker()
     motion = context.library.get(connection.motion)
@@ -253,7 +254,7 @@ def rise(
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         try:
             goal = connecting_posture(library, robot, conn, key or start, checker)
-            room = _motion_room(context, conn, goal)
+            room = connection_room(context, conn, goal)
             if not room.ok:
                 attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, blocked=room.describe(), seconds={"plan": time.monotonic() - t0}))
                 log.info("candidate %s@%d: %s", conn.motion, conn.frame, room.describe())

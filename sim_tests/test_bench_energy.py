@@ -32,7 +32,7 @@ def test_that_the_lying60_cache_gives_each_problem_its_goal_rank_without_global_
     per_kind = {"supine": 2}
     path = tmp_path / "lying.json"
     path.write_text(json.dumps(_cache(p, per_kind)))
-    out = be._cached_lying60(robot, checker, 1, per_kind, str(path))
+    out = be.cached_lying60(robot, checker, 1, per_kind, str(path))
     assert [(q.kind, q.variant, q.goal_rank, q.goal_frame) for q in out] == [("supine", 0, 0, "m@0"), ("supine", 1, 1, "m@1")]
     assert not hasattr(be, "LYING60_GOAL_RANKS")
     assert be.CrossedProblem("k", 0, p.start, p.goal).goal_rank == 0  # crossed-limb problems: the nearest, no frame
@@ -44,7 +44,7 @@ def test_that_a_lying60_cache_from_before_the_format_string_is_read_with_a_warni
     path = tmp_path / "old.json"
     path.write_text(json.dumps(_cache(p, per_kind)))  # no "format": as out/lying60_seed1.json was written
     with caplog.at_level("WARNING"):
-        out = be._cached_lying60(robot, checker, 1, per_kind, str(path))
+        out = be.cached_lying60(robot, checker, 1, per_kind, str(path))
     assert len(out) == 1 and "has no format string" in caplog.text
 
 
@@ -54,15 +54,15 @@ def test_that_a_lying60_cache_of_another_format_or_without_its_fields_is_refused
     path = tmp_path / "other.json"
     path.write_text(json.dumps(_cache(p, per_kind, format="robot-rise/bench-energy@1")))
     with pytest.raises(FormatError, match="format is 'robot-rise/bench-energy@1', expected 'robot-rise/lying-problems@1'"):
-        be._cached_lying60(robot, checker, 1, per_kind, str(path))
+        be.cached_lying60(robot, checker, 1, per_kind, str(path))
     data = _cache(p, per_kind, format=be.LYING_PROBLEMS_FORMAT)
     del data["problems"][0]["goal"]
     path.write_text(json.dumps(data))
     with pytest.raises(FormatError, match="problem 0 lacks goal"):
-        be._cached_lying60(robot, checker, 1, per_kind, str(path))
+        be.cached_lying60(robot, checker, 1, per_kind, str(path))
     path.write_text("{not json")
     with pytest.raises(FormatError, match="not a JSON file"):
-        be._cached_lying60(robot, checker, 1, per_kind, str(path))
+        be.cached_lying60(robot, checker, 1, per_kind, str(path))
 
 
 def test_that_a_new_lying60_cache_carries_its_format_and_reads_back_silently(setup, tmp_path, monkeypatch, caplog):
@@ -71,11 +71,11 @@ def test_that_a_new_lying60_cache_carries_its_format_and_reads_back_silently(set
     sampled = [be.CrossedProblem("supine", 0, p.start, p.goal, 1, "m@3")]
     monkeypatch.setattr(be, "lying60_problems", lambda *a, **k: sampled)  # sampling settles postures for minutes
     path = tmp_path / "new.json"
-    assert be._cached_lying60(robot, checker, 1, per_kind, str(path)) == sampled
+    assert be.cached_lying60(robot, checker, 1, per_kind, str(path)) == sampled
     assert json.loads(path.read_text())["format"] == be.LYING_PROBLEMS_FORMAT
     monkeypatch.setattr(be, "lying60_problems", lambda *a, **k: pytest.fail("the cache was not reused"))
     with caplog.at_level("WARNING"):
-        back = be._cached_lying60(robot, checker, 1, per_kind, str(path))
+        back = be.cached_lying60(robot, checker, 1, per_kind, str(path))
     assert [(q.goal_rank, q.goal_frame) for q in back] == [(1, "m@3")] and "no format string" not in caplog.text
 
 
@@ -109,7 +109,7 @@ def test_that_merge_refuses_a_bad_results_file_in_one_line_with_a_hint(tmp_path,
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(doc))
     with pytest.raises(FormatError, match=message):
-        be._load_rows([str(path)])
+        be.load_rows([str(path)])
     assert be.main(["--merge", str(path)]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and err[0].startswith("error: ") and message in err[0] and err[1].startswith("hint: ")
@@ -120,7 +120,7 @@ def test_that_the_results_file_carries_its_format_and_merges_back(tmp_path, monk
     monkeypatch.setattr(be, "run_benchmark", lambda **kw: [kw["progress"](_row()) or _row()])  # the files, not the planners
     assert be.main(["--out", str(out)]) == 0
     assert json.loads(out.read_text())["format"] == be.BENCH_ENERGY_FORMAT
-    back = be._load_rows([str(out)])
+    back = be.load_rows([str(out)])
     assert [(r.planner, r.kind, r.jerk) for r in back] == [("energy", "crossed_arms", 5.0)]
 
 

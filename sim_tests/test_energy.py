@@ -464,7 +464,7 @@ def test_that_the_dense_output_is_legal_dense_and_no_rougher_than_the_polyline(s
     assert len(out) >= 4 * len(frames) and stats["output_frames"] == len(out)
     assert _legal_path(checker, out)
     poly = energy_module.resample_path(checker, frames, OUTPUT_SPACING_RAD)
-    assert energy_dense._timed_roughness(checker, out) <= energy_dense._timed_roughness(checker, poly)
+    assert energy_dense.timed_roughness(checker, out) <= energy_dense.timed_roughness(checker, poly)
     # on crossed arms the B-spline is legal and times smoother than the frames' polyline (which
     # bends at every frame): measured 2026-12-01, J x D^5 lower
     assert stats["output"] == "bspline"
@@ -560,7 +560,7 @@ def test_that_plan_with_the_energy_planner_writes_the_same_trajectory_format(set
 def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the_default():
     from robot_rise.bench import energy as bench_energy
 
-    planners = dict(bench_energy._planners())
+    planners = dict(bench_energy.bench_planners())
     assert set(planners) - {"ompl_rrtconnect"} <= set(bench_energy.PLANNER_NAMES)
     assert set(bench_energy.ABLATIONS) <= set(planners)
     default = planners["energy"].params

@@ -20,7 +20,7 @@ from robot_rise.filter import ankle_joints, ground_tilt_vector, prove, slope_ank
 from robot_rise.model import compose, model_index
 from robot_rise.posture import write_posture
 from robot_rise.library import connecting_posture, connection_candidates
-from robot_rise.rise import RiseContext, _motion_room, rise
+from robot_rise.rise import RiseContext, connection_room, rise
 from robot_rise.sampling import sample_lying
 
 # What a failure must name: a constraint with where (segment and time) and which joint or body.
@@ -113,7 +113,7 @@ def test_obstacles_under_the_robot_leave_room_a_beam_under_the_face_and_a_bed_un
         start = sample_lying(robot, "prone", 1, seed=2, scene=scene).postures[0]  # settled on the beam / the bed
         conn = connection_candidates(context.library, robot, start, 1, index=context.index, tree=context.tree)[0]
         goal = connecting_posture(context.library, robot, conn, start, context.checker)
-        room = _motion_room(context, conn, goal)
+        room = connection_room(context, conn, goal)
         assert room.ok, room.describe()
 
 
@@ -127,7 +127,7 @@ def test_half_out_from_under_the_table_a_motion_that_ends_outside_is_not_blocked
         where = "under" if abs(start.root_pos[0]) < 0.3 and abs(start.root_pos[1]) < 0.25 else "half out"
         for conn in connection_candidates(context.library, robot, start, 3, index=context.index, tree=context.tree):
             goal = connecting_posture(context.library, robot, conn, start, context.checker)
-            free[where] += _motion_room(context, conn, goal).ok
+            free[where] += connection_room(context, conn, goal).ok
     assert free["half out"] > 0 and free["under"] == 0
 
 

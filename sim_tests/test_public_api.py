@@ -125,3 +125,17 @@ def test_the_readme_layout_names_every_module_and_nothing_that_is_gone():
     for name in named:
         if name.endswith(".py"):
             assert list(root.glob(f"*/**/{name}")), f"README layout names {name}, which does not exist"
+
+
+def test_tests_import_public_names_only():
+    """A test that needs a private name tests an implementation detail: make the name public or test through it."""
+    import ast
+    from pathlib import Path
+
+    root = Path(robot_rise.__file__).parent.parent
+    for folder in ("sim_tests", "hil_tests"):
+        for path in (root / folder).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in ("robot_rise", "drivers"):
+                    private = [a.name for a in node.names if a.name.startswith("_")]
+                    assert not private, f"{path.relative_to(root)} imports private {private} from {node.module}"

@@ -10,7 +10,7 @@ from robot_rise.model import load_robot
 from robot_rise.bench.problems import obstacle_problems
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanStatus
-from robot_rise.planning.rrt_blossom.refine import RRTBlossomPlanner, _runs, limbs_of_collisions, loose_to_strict_schedule
+from robot_rise.planning.rrt_blossom.refine import RRTBlossomPlanner, illegal_edge_runs, limbs_of_collisions, loose_to_strict_schedule
 from robot_rise.planning.space import PostureSpace
 from robot_rise.validity import Collision, ValidityChecker, ValidityReport
 
@@ -47,8 +47,8 @@ def test_that_flat_ground_needs_a_single_strict_iteration(robot, scenes):
 
 def test_that_illegal_runs_close_in_time_are_merged():
     bad = np.array([False, True, False, True, False, False, False, True, False])
-    assert _runs(bad, 2) == [(1, 4), (7, 8)]
-    assert _runs(bad, 1) == [(1, 2), (3, 4), (7, 8)]
+    assert illegal_edge_runs(bad, 2) == [(1, 4), (7, 8)]
+    assert illegal_edge_runs(bad, 1) == [(1, 2), (3, 4), (7, 8)]
 
 
 def test_that_partial_body_planning_moves_only_the_limbs_in_collision(robot):
@@ -101,7 +101,7 @@ def test_that_an_invalid_key_posture_is_refused(robot, scenes):
 @pytest.mark.parametrize("merge_gap, replans", [(2, 1), (1, 2)])
 def test_that_cut_and_merge_replans_only_the_illegal_segments_and_keeps_the_rest(robot, merge_gap, replans):
     """Section 4.2.4: legal waypoints around the illegal ones are kept; close illegal runs are replanned as one."""
-    from robot_rise.planning.rrt_blossom.refine import PlannerConfig, _Run
+    from robot_rise.planning.rrt_blossom.refine import PlannerConfig, Run
 
     checker = ValidityChecker(robot, "flat")
     space = PostureSpace.for_robot(robot)
@@ -116,7 +116,7 @@ def test_that_cut_and_merge_replans_only_the_illegal_segments_and_keeps_the_rest
     assert not v.illegal_edges(path).any()
     assert list(np.flatnonzero(v.illegal_edges(sunk))) == [1, 2, 4, 5]
     planner = RRTBlossomPlanner(PlannerConfig(merge_gap=merge_gap))
-    run = _Run(robot, space, planner.config, np.random.default_rng(0), float("inf"))
+    run = Run(robot, space, planner.config, np.random.default_rng(0), float("inf"))
     out = planner._repair(run, v, sunk, "test")
     assert not v.illegal_edges(out).any()
     np.testing.assert_array_equal(out[:2], sunk[:2])  # the legal start of the path is kept

@@ -216,9 +216,9 @@ def test_that_a_part_that_reached_the_sample_stays_there_while_the_others_are_pl
 
 def test_that_blocked_branches_recede_dead_or_dormant_up_the_tree():
     """Fig. 4 recession: children closed with nothing live make their parent dead (all collided) or dormant (regressed)."""
-    from robot_rise.planning.rrt_blossom.search import EdgeState, _Tree
+    from robot_rise.planning.rrt_blossom.search import EdgeState, Tree
 
-    tr = _Tree(np.zeros(3), 10)
+    tr = Tree(np.zeros(3), 10)
     a = tr.add(np.ones(3), 0)
     b = tr.add(2 * np.ones(3), a)
     c = tr.add(3 * np.ones(3), a)
@@ -244,11 +244,11 @@ def test_that_turning_over_is_found_when_the_straight_slerp_is_a_somersault(robo
     a 10 s budget without it); with the uniform share seeds 0-5 need at most 310 nodes in both
     trees together. The node limit, not the clock, decides: the test does not depend on the
     machine's speed."""
-    from robot_rise.bench.problems import _lying_posture
+    from robot_rise.bench.problems import lying_posture_at
     from robot_rise.planning.rrt_blossom import BlossomConfig, PlannerConfig
 
-    a = _lying_posture(robot, flat, "supine", (0.0, 0.0), 0.0)
-    b = _lying_posture(robot, flat, "prone", (0.0, 0.0), 0.0)
+    a = lying_posture_at(robot, flat, "supine", (0.0, 0.0), 0.0)
+    b = lying_posture_at(robot, flat, "prone", (0.0, 0.0), 0.0)
     planner = RRTBlossomPlanner(PlannerConfig(blossom=BlossomConfig(max_nodes=600)))
     res = planner(PlanningProblem(a, b, flat, budget_s=120.0, seed=seed))
     assert res.solved, res.reason

@@ -13,9 +13,9 @@ from robot_rise.planning.problem import PlanningProblem, PostureSequence
 from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 from robot_rise.planning.smoothing import (
     SmoothingConfig,
-    _bspline_points,
-    _detour,
-    _timed_jerk,
+    bspline_points,
+    detour,
+    timed_jerk,
     bspline_samples,
     smooth_path,
     smooth_path_report,
@@ -91,7 +91,7 @@ def test_that_tripled_control_points_reproduce_the_polyline(robot):
     v = MotionValidator(checker, space)
     rng = np.random.default_rng(0)
     ctrl = np.stack([np.concatenate([[0.0, 0.0, 0.5 + 0.1 * i], robot.stand_qpos[3:7], rng.uniform(-0.3, 0.3, robot.n_joints)]) for i in range(4)])
-    pts, _ = _bspline_points(ctrl, np.full(4, 3), space, 0.01, v)
+    pts, _ = bspline_points(ctrl, np.full(4, 3), space, 0.01, v)
     for x in pts:  # every sample lies on one of the polyline's edges
         on_edge = False
         for a, b in zip(ctrl[:-1], ctrl[1:]):
@@ -181,7 +181,7 @@ def test_that_a_detour_is_not_put_back(robot):
     b[7] = 1.0
     m_flat[7], m_flat[8] = 0.5, 0.05
     m_far[7], m_far[8] = 0.5, 0.6
-    assert _detour(a, m_flat, b, v) <= SmoothingConfig().restore_max_detour < _detour(a, m_far, b, v)
+    assert detour(a, m_flat, b, v) <= SmoothingConfig().restore_max_detour < detour(a, m_far, b, v)
 
 
 def test_that_smooth_path_keeps_hard_corners_where_they_time_smoother(disc_case):
@@ -189,9 +189,9 @@ def test_that_smooth_path_keeps_hard_corners_where_they_time_smoother(disc_case)
     common duration is lower: never rougher than the smoother before repair a."""
     checker, seq, _ = disc_case
     for seed in range(3):
-        chosen = _timed_jerk(smooth_path(seq, checker, seed=seed), checker)
-        assert chosen <= _timed_jerk(smooth_path(seq, checker, config=tripling_only(SmoothingConfig()), seed=seed), checker) * (1 + 1e-12)
-        assert chosen <= _timed_jerk(smooth_path_report(seq, checker, seed=seed)[0], checker) * (1 + 1e-12)
+        chosen = timed_jerk(smooth_path(seq, checker, seed=seed), checker)
+        assert chosen <= timed_jerk(smooth_path(seq, checker, config=tripling_only(SmoothingConfig()), seed=seed), checker) * (1 + 1e-12)
+        assert chosen <= timed_jerk(smooth_path_report(seq, checker, seed=seed)[0], checker) * (1 + 1e-12)
 
 
 def test_that_the_planners_own_curve_is_kept_only_when_smoother_and_no_slower(disc_case, robot):
@@ -201,5 +201,5 @@ def test_that_the_planners_own_curve_is_kept_only_when_smoother_and_no_slower(di
     checker, seq, _ = disc_case
     with_d = smooth_path(seq, checker, seed=0)
     without = smooth_path(seq, checker, config=SmoothingConfig(try_without_shortcut=False), seed=0)
-    assert _timed_jerk(with_d, checker) <= _timed_jerk(without, checker) * (1 + 1e-12)
+    assert timed_jerk(with_d, checker) <= timed_jerk(without, checker) * (1 + 1e-12)
     assert time_parameterize(with_d, robot).duration_s <= time_parameterize(without, robot).duration_s + 1e-9

@@ -294,7 +294,7 @@ def library_digest(robot: Robot) -> str:
     return h.hexdigest()[:16]
 
 
-def _cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind: dict[str, int] | None, cache: str | None) -> list[CrossedProblem]:
+def cached_lying60(robot: Robot, checker: ValidityChecker, seed: int, per_kind: dict[str, int] | None, cache: str | None) -> list[CrossedProblem]:
     """``lying60_problems``, frozen in a JSON file (settling takes minutes; the library may change).
 
     The file is reused as long as it was made with the same seed and counts, whatever the library
@@ -475,7 +475,7 @@ _KEY_POSTURES = EnergyConfig(straighten_limbs=False, second_stage=None)
 _KEY_POSTURES_S2 = EnergyConfig(straighten_limbs=False, dense_output=False, second_stage=SecondStageConfig())
 
 
-def _planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
+def bench_planners() -> list[tuple[str, Callable[[PlanningProblem], PlanResult]]]:
     from robot_rise.bench.ompl_adapter import OmplPlanner, ompl_available
     from robot_rise.planning.rrt_blossom import RRTBlossomPlanner
 
@@ -540,9 +540,9 @@ def run_benchmark(
     if "crossed" in sets:
         problems += [("crossed", p) for p in crossed_problems(robot, checker, kinds=kinds, n=n, seed=seed)]
     if "lying60" in sets:
-        problems += [("lying60", p) for p in _cached_lying60(robot, checker, lying_seed, lying_per_kind, lying_cache)]
+        problems += [("lying60", p) for p in cached_lying60(robot, checker, lying_seed, lying_per_kind, lying_cache)]
     rows: list[BenchRow] = []
-    for name, planner in _planners():
+    for name, planner in bench_planners():
         if planners and not any(name == p or (name.startswith(p) and name not in ABLATIONS) for p in planners):
             continue
         if not planners and name in ABLATIONS:
@@ -654,7 +654,7 @@ def paired_jerk_table(rows: list[BenchRow], measure: str = "jerk") -> str:
     return "\n".join(lines)
 
 
-def _load_rows(paths: list[str]) -> list[BenchRow]:
+def load_rows(paths: list[str]) -> list[BenchRow]:
     """The runs of saved ``--out`` files (``BENCH_ENERGY_FORMAT``).
 
     Raises:
@@ -723,7 +723,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     if args.merge:
-        _print(_load_rows(args.merge))
+        _print(load_rows(args.merge))
         return 0
     t0 = time.monotonic()
     done: list[BenchRow] = []

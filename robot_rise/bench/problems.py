@@ -150,7 +150,7 @@ def obstacle_problems(robot: Robot) -> list[BenchProblem]:
     ]
     for scene, kind, xy, yaw, goal_xy in specs:
         checker = ValidityChecker(robot, scene)
-        start = _lying_posture(robot, checker, kind, xy, yaw)
+        start = lying_posture_at(robot, checker, kind, xy, yaw)
         goal = align_to_start(crouch, start, checker, xy=np.asarray(goal_xy))
         if scene == "low_bed":
             goal = goal  # the floor: lowest point at z = 0
@@ -158,7 +158,7 @@ def obstacle_problems(robot: Robot) -> list[BenchProblem]:
     return out
 
 
-def _lying_posture(robot: Robot, checker: ValidityChecker, kind: str, xy: tuple[float, float], yaw: float) -> Posture:
+def lying_posture_at(robot: Robot, checker: ValidityChecker, kind: str, xy: tuple[float, float], yaw: float) -> Posture:
     """A straight lying posture (stand joints, arms by the side) resting on whatever is below.
 
     The root height is found by lowering the robot until just before it becomes invalid.

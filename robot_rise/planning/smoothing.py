@@ -155,7 +155,7 @@ def shortcut_indices(states: np.ndarray, validator: MotionValidator, rng: np.ran
     return np.array(path, dtype=int)
 
 
-def _bspline_points(ctrl: np.ndarray, mult: np.ndarray, space: PostureSpace, spacing_m: float, validator: MotionValidator) -> tuple[np.ndarray, np.ndarray]:
+def bspline_points(ctrl: np.ndarray, mult: np.ndarray, space: PostureSpace, spacing_m: float, validator: MotionValidator) -> tuple[np.ndarray, np.ndarray]:
     """Dense samples of the uniform cubic B-spline of control points with multiplicities.
 
     Returns:
@@ -192,7 +192,7 @@ def bspline_samples(ctrl: np.ndarray, space: PostureSpace, validator: MotionVali
     """Dense samples of the end-clamped uniform cubic B-spline of ``ctrl`` (K, 7 + n)."""
     mult = np.ones(len(ctrl), dtype=int)
     mult[0] = mult[-1] = 3
-    return _bspline_points(ctrl, mult, space, spacing_m, validator)[0]
+    return bspline_points(ctrl, mult, space, spacing_m, validator)[0]
 
 
 def smooth_path(
@@ -263,7 +263,7 @@ def _smooth_through(
     return _sequence(seq, joined), sum(r.n_restored for _, r in done)
 
 
-def _timed_jerk(seq: PostureSequence, checker: ValidityChecker) -> float:
+def timed_jerk(seq: PostureSequence, checker: ValidityChecker) -> float:
     """Integrated squared jerk x D^5 of the path's default servo-limited timing [rad^2]: ranks two
     curves of one path by their jerk at a common duration (BENCHMARKS, issue 7)."""
     return _timed(seq, checker)[0]
@@ -326,7 +326,7 @@ def _smooth_states(
     for rnd in range(config.max_rounds + 1):
         ctrl = states[keep]
         mult = np.where(tripled[keep], 3, 1)
-        samples, owner = _bspline_points(ctrl, mult, space, config.sample_spacing_m, validator)
+        samples, owner = bspline_points(ctrl, mult, space, config.sample_spacing_m, validator)
         bad = _bad_intervals(samples, validator)
         if not bad.size:
             report = SmoothingReport(len(states), n_short, n_restored, len(keep), int(np.sum(tripled[keep][1:-1])), rnd, False)
@@ -346,7 +346,7 @@ def _smooth_states(
                 for a, b in zip(cps[:-1], cps[1:]):
                     lo, hi = int(keep[a]), int(keep[b])
                     m = (lo + hi) // 2
-                    if hi - lo > 1 and _detour(states[lo], states[m], states[hi], validator) <= config.restore_max_detour:
+                    if hi - lo > 1 and detour(states[lo], states[m], states[hi], validator) <= config.restore_max_detour:
                         mids.append(m)
             if mids:
                 insert.update(mids)
@@ -365,7 +365,7 @@ def _smooth_states(
     return _sequence(seq, np.array(dense)), report
 
 
-def _detour(a: np.ndarray, m: np.ndarray, b: np.ndarray, validator: MotionValidator) -> float:
+def detour(a: np.ndarray, m: np.ndarray, b: np.ndarray, validator: MotionValidator) -> float:
     """Relative lengthening of a -> b when routed through m (robot-point travel bound), >= 0."""
     direct = validator.travel_bound(a, b)
     return (validator.travel_bound(a, m) + validator.travel_bound(m, b)) / max(direct, 1e-12) - 1.0

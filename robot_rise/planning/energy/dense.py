@@ -16,7 +16,7 @@ from robot_rise.planning.timing import integrated_squared_jerk, time_parameteriz
 from robot_rise.posture import posture_from_qpos
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["dense_output"]
+__all__ = ["timed_roughness", "dense_output"]
 
 
 def _bspline_chart(checker: ValidityChecker, path: np.ndarray, per_piece: int) -> np.ndarray:
@@ -35,7 +35,7 @@ def _bspline_chart(checker: ValidityChecker, path: np.ndarray, per_piece: int) -
     return out
 
 
-def _timed_roughness(checker: ValidityChecker, path: np.ndarray) -> float:
+def timed_roughness(checker: ValidityChecker, path: np.ndarray) -> float:
     """J x D^5 [rad^2] of the shared servo-limited timing of qpos rows: the jerk at a common duration."""
     robot = checker.robot
     seq = PostureSequence.from_postures([posture_from_qpos(robot, checker.index, q) for q in path], robot.joint_names)
@@ -100,7 +100,7 @@ def dense_output(
                 break
         if legal and deadline_passed(deadline):
             legal, stopped = False, True
-        if legal and _timed_roughness(checker, spline) < _timed_roughness(checker, poly):
+        if legal and timed_roughness(checker, spline) < timed_roughness(checker, poly):
             out, kind = spline, "bspline"
     if stats is not None:
         stats.update(output=kind, output_frames=len(out), stopped_on_budget=stopped)

@@ -40,7 +40,7 @@ from robot_rise.planning.space import PostureSpace
 from robot_rise.posture import validate_posture
 from robot_rise.validity import Looseness, ValidityChecker, ValidityReport
 
-__all__ = ["PlannerConfig", "RRTBlossomPlanner", "loose_to_strict_schedule", "limbs_of_collisions", "states_to_sequence"]
+__all__ = ["illegal_edge_runs", "PlannerConfig", "RRTBlossomPlanner", "loose_to_strict_schedule", "limbs_of_collisions", "states_to_sequence"]
 
 log = logging.getLogger(__name__)
 
@@ -136,7 +136,7 @@ class _Failure(Exception):
         self.reason = reason
 
 
-def _runs(bad: np.ndarray, gap: int) -> list[tuple[int, int]]:
+def illegal_edge_runs(bad: np.ndarray, gap: int) -> list[tuple[int, int]]:
     """Merged runs of illegal edges as (first waypoint, last waypoint) pairs of legal ends."""
     idx = np.flatnonzero(bad)
     runs: list[list[int]] = []
@@ -163,7 +163,7 @@ def _describe(lo: Looseness) -> str:
 
 
 @dataclass
-class _Run:
+class Run:
     """Mutable state of one planning call."""
 
     robot: Robot
@@ -193,7 +193,7 @@ class RRTBlossomPlanner:
         checker = problem.checker
         robot = checker.robot
         space = PostureSpace.for_robot(robot)
-        run = _Run(robot, space, self.config, np.random.default_rng(problem.seed), t0 + problem.budget_s)
+        run = Run(robot, space, self.config, np.random.default_rng(problem.seed), t0 + problem.budget_s)
         for label, p in (("start", problem.start), ("goal", problem.goal), ("key", problem.key)):
             if p is not None:
                 validate_posture(p, robot, where=f"{label} posture")  # wrong robot or joints: an input error
@@ -227,7 +227,7 @@ class RRTBlossomPlanner:
 
     # --- one leg -------------------------------------------------------------------------------
 
-    def _plan_leg(self, run: _Run, base: MotionValidator, a: np.ndarray, b: np.ndarray, leg: str) -> np.ndarray:
+    def _plan_leg(self, run: Run, base: MotionValidator, a: np.ndarray, b: np.ndarray, leg: str) -> np.ndarray:
         cfg = self.config
         checker = base.checker
         schedule = loose_to_strict_schedule(checker, [base._qpos(a), base._qpos(b)], cfg.increment_m)
@@ -252,13 +252,13 @@ class RRTBlossomPlanner:
         run.bump("checks", fine.n_checks)
         return path
 
-    def _repair(self, run: _Run, v: MotionValidator, path: np.ndarray, where: str) -> np.ndarray:
+    def _repair(self, run: Run, v: MotionValidator, path: np.ndarray, where: str) -> np.ndarray:
         """Cut and merge: replan the illegal segments of ``path`` under validator ``v``."""
         for _ in range(self.config.max_repair_rounds):
             bad = v.illegal_edges(path)
             if not bad.any():
                 return path
-            runs = _runs(bad, self.config.merge_gap)
+            runs = illegal_edge_runs(bad, self.config.merge_gap)
             for i, j in reversed(runs):  # from the end, so earlier indices stay put
                 first = i + int(np.argmax(bad[i:j]))
                 seg = v.first_invalid(path[first], path[first + 1])
@@ -269,7 +269,7 @@ class RRTBlossomPlanner:
             raise _Failure(PlanStatus.FAILED, f"{where}: still illegal after {self.config.max_repair_rounds} repair rounds")
         return path
 
-    def _replan(self, run: _Run, v: MotionValidator, a: np.ndarray, b: np.ndarray, rep: ValidityReport | None, where: str) -> np.ndarray:
+    def _replan(self, run: Run, v: MotionValidator, a: np.ndarray, b: np.ndarray, rep: ValidityReport | None, where: str) -> np.ndarray:
         cfg = self.config
         what = "; ".join(rep.reasons()) if rep is not None else "illegal edge"
         run.bump("replans")
@@ -295,7 +295,7 @@ class RRTBlossomPlanner:
         return out.path
 
     @staticmethod
-    def _count(run: _Run, s: dict[str, float]) -> None:
+    def _count(run: Run, s: dict[str, float]) -> None:
         run.bump("iterations", s.get("iterations", 0))
         run.bump("nodes", s.get("nodes_start", 0) + s.get("nodes_goal", 0))
         run.bump("dormant", s.get("dormant_start", 0) + s.get("dormant_goal", 0))

@@ -141,7 +141,7 @@ class BlossomOutcome:
     stats: dict[str, float] = field(default_factory=dict)
 
 
-class _Tree:
+class Tree:
     """Nodes in preallocated arrays; the edge state of node i is that of the edge parent -> i."""
 
     def __init__(self, root: np.ndarray, cap: int) -> None:
@@ -229,7 +229,7 @@ def rrt_blossom(
     partial = free_joints is not None
     free = np.ones(n, dtype=bool) if free_joints is None else np.asarray(free_joints, dtype=bool)
 
-    def stats(trees: tuple[_Tree, _Tree], it: int) -> dict[str, float]:
+    def stats(trees: tuple[Tree, Tree], it: int) -> dict[str, float]:
         out: dict[str, float] = {"iterations": it, "seconds": time.monotonic() - t0, "checks": validator.n_checks - checks0}
         for name, tr in zip(("start", "goal"), trees):
             st = tr.state[: tr.n]
@@ -241,9 +241,9 @@ def rrt_blossom(
         return out
 
     if validator.segment_valid(a, b):  # the straight motion is the trivial tree connection
-        return BlossomOutcome(np.stack([a, b]), stats=stats((_Tree(a, 2), _Tree(b, 2)), 0))
+        return BlossomOutcome(np.stack([a, b]), stats=stats((Tree(a, 2), Tree(b, 2)), 0))
 
-    ta, tb = _Tree(a, cfg.max_nodes), _Tree(b, cfg.max_nodes)
+    ta, tb = Tree(a, cfg.max_nodes), Tree(b, cfg.max_nodes)
     start_tree = ta
     span = np.where(free, cfg.span_rad, 0.0)
 
@@ -274,7 +274,7 @@ def rrt_blossom(
         x[7:] = np.where(free, v, base[7:])
         return x
 
-    def extend(tree: _Tree, target: np.ndarray) -> int:
+    def extend(tree: Tree, target: np.ndarray) -> int:
         """EXTEND_BLOSSOM of Fig. 2; returns the new node nearest the target or -1."""
         cand = np.flatnonzero(tree.candidate[: tree.n])
         if cand.size == 0:
@@ -322,7 +322,7 @@ def rrt_blossom(
             tree.close(near, cfg.max_expansions)
         return best
 
-    def join(t1: _Tree, i1: int, t2: _Tree, i2: int) -> np.ndarray:
+    def join(t1: Tree, i1: int, t2: Tree, i2: int) -> np.ndarray:
         """Path start -> goal through node i1 of t1 and node i2 of t2 (one of them the start tree)."""
         (ts, i_s), (tg, i_g) = ((t1, i1), (t2, i2)) if t1 is start_tree else ((t2, i2), (t1, i1))
         return np.concatenate([ts.x[ts.branch(i_s)], tg.x[tg.branch(i_g)][::-1]])
