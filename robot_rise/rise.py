@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import ROBUSTNESS_VARIANTS, FilterConfig, FilterResult, ModelVariant, Proof, dynamics_filter, join_with_blend, prove, stands_under
+from robot_rise.filter import FilterConfig, FilterResult, Proof, dynamics_filter, join_with_blend, prove, stands_under
+from robot_rise.sim.variants import ModelVariant
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames
 from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room
@@ -205,7 +206,7 @@ def rise(
     progress: Callable[[str], None] | None = None,
     context: RiseContext | None = None,
     retries: int = DEFAULT_RETRIES,
-    robustness: tuple[ModelVariant, ...] = ROBUSTNESS_VARIANTS,
+    robustness: tuple[ModelVariant, ...] = (),
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -221,7 +222,8 @@ def rise(
         filter_config: dynamics filter tuning.
         progress: called with a short stage description.
         context: prebuilt checker/library/index for this robot and scene (reuse across rises).
-        robustness: model variants every proven candidate is replayed under; the first candidate
+        robustness: extra model variants every proven candidate is replayed under (default none:
+            the filter's ensemble proof already replays every variant); the first candidate
             that still stands under all of them is returned, else the first proven one (its
             report's ``robustness`` says which check it failed).
         retries: when every candidate fails but the robot ends lying at rest, rise again from

@@ -12,8 +12,9 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``slope``: the flat-ground stance turned to sloped ground (paper 000 section 5.2).
 - ``lean``: the lean on arms and feet adapted to a retargeted body (paper 000 section 5.3).
 - ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
+- ``ensemble``: the replay on every model variant (``robot_rise.sim.variants``), ``check``.
 - ``loop``: ``dynamics_filter``, iterating reshape and proof.
-- ``robustness``: replays on deliberately wrong models (``ModelVariant``).
+- ``robustness``: one replay on a deliberately wrong model (``stands_under``).
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
-from robot_rise.filter.proof import Permit, Proof, check, execution_permit, prove, scene_digest
-from robot_rise.filter.robustness import ROBUSTNESS_VARIANTS, ModelVariant, stands_under
+from robot_rise.filter.ensemble import EnsembleReplayer, EnsembleResult, check, replay_random_variants, with_ensemble
+from robot_rise.filter.proof import Permit, Proof, VariantVerdict, execution_permit, prove, scene_digest
+from robot_rise.filter.robustness import stands_under
 from robot_rise.filter.slope import (
     SLOPE_MIN_RAD,
     ankle_joints,
@@ -48,10 +50,13 @@ __all__ = [
     "Permit",
     "prove",
     "check",
+    "EnsembleReplayer",
+    "EnsembleResult",
+    "VariantVerdict",
+    "replay_random_variants",
+    "with_ensemble",
     "execution_permit",
     "scene_digest",
-    "ModelVariant",
-    "ROBUSTNESS_VARIANTS",
     "stands_under",
     "describe_fall",
     "ground_tilt_vector",

@@ -35,6 +35,8 @@ class FilterConfig:
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].
+        ensemble: prove on every model variant too (``robot_rise.sim.variants.ENSEMBLE``).
+        ensemble_rounds: times a motion some variant falls with is slowed and proven again.
     """
 
     envelope_margin: float = ENVELOPE_MARGIN
@@ -51,3 +53,5 @@ class FilterConfig:
     max_iterations: int = 6
     hold_s: float = 3.0
     max_duration_s: float = 30.0
+    ensemble: bool = True
+    ensemble_rounds: int = 3

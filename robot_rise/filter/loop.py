@@ -32,6 +32,7 @@ The output trajectory holds the commanded targets (not the plan) and a report pr
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -42,11 +43,12 @@ from typing import Any
 import numpy as np
 
 from robot_rise.filter.config import FilterConfig
+from robot_rise.filter.ensemble import EnsembleReplayer, with_ensemble
 from robot_rise.filter.join import time_scale
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
 from robot_rise.filter.proof import Proof, prove_with_violations
 from robot_rise.filter.slope import SLOPE_MIN_RAD, ground_tilt_vector, turn_stance_to_slope
-from robot_rise.filter.violations import saturation_rad
+from robot_rise.filter.violations import find_violations, saturation_rad
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
@@ -103,17 +105,20 @@ def dynamics_filter(
     start: Posture | None = None,
     protect_until_s: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
+    ensemble: EnsembleReplayer | None = None,
 ) -> FilterResult:
-    """Reshape ``commanded`` until it stands the robot up within the servo limits, or say why not.
+    """Reshape ``commanded`` until it stands the robot up within the servo limits on the nominal
+    model and on every model variant, or say why not.
 
     Args:
         robot: the robot.
         commanded: first guess of the servo targets (e.g. join_with_blend(plan, motion, frame)).
         scene: scene the motion is proven in.
-        config: filter tuning.
+        config: filter tuning (``config.ensemble`` switches the ensemble proof).
         start: the posture the robot really lies in (default: commanded.start).
         protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
         progress: called as progress(iteration, max_iterations).
+        ensemble: the variants' players to reuse (default: built here when ``config.ensemble``).
 
     Returns:
         FilterResult whose trajectory holds the final commanded targets and the proof report
@@ -121,6 +126,51 @@ def dynamics_filter(
     """
     start = start or commanded.start
     player = Player(robot, scene)
+    if config.ensemble and ensemble is None:
+        ensemble = EnsembleReplayer(robot, scene)
+    result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s, progress=progress)
+    rounds = 0
+    while ensemble is not None and result.proven:
+        replayed, recs = ensemble.replay(result.trajectory, start=start, config=config)
+        failures = replayed.failures()
+        proof = with_ensemble(result.proof, replayed)
+        report = {**result.report, **proof.to_dict()}
+        final = dataclasses.replace(result.trajectory, report={**result.trajectory.report, **proof.to_dict()})
+        reason = "" if not failures else "; ".join(failures[:3]) + f" ({len(failures)} of {len(recs)} model variants fall)"
+        result = dataclasses.replace(result, proven=proof.proven, trajectory=final, proof=proof, reason=reason, report=report)
+        log.info("ensemble: %d of %d variants stand", proof.ensemble_standing, len(recs))
+        if not failures or rounds >= config.ensemble_rounds:
+            break
+        rounds += 1
+        # the motion is a fluke of the nominal model: slow where the falling variants went wrong
+        saturation = saturation_rad(robot)
+        found = [v for r, vv in zip(recs, replayed.verdicts) if not vv.standing for v in find_violations(r, config, saturation_rad=saturation)]
+        windows = [(max(v.t_start_s - config.window_pad_s, protect_until_s), min(v.t_end_s + config.window_pad_s, result.trajectory.duration_s)) for v in found]
+        windows = [(a, b) for a, b in windows if b > a] or [(protect_until_s, result.trajectory.duration_s)]
+        slowed = time_scale(result.trajectory, windows, config.slow_factor)
+        if slowed.duration_s > config.max_duration_s:
+            break
+        log.info("ensemble round %d: %d variants fall; slowing %d windows", rounds, len(failures), len(windows))
+        again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
+                                start=start, protect_until_s=protect_until_s, progress=progress)
+        if not again.proven:
+            break
+        result = again
+    return result
+
+
+def _nominal_filter(
+    robot: Robot,
+    commanded: Trajectory,
+    player: Player,
+    *,
+    scene: str | os.PathLike[str] | None,
+    config: FilterConfig,
+    start: Posture,
+    protect_until_s: float,
+    progress: Callable[[int, int], None] | None,
+) -> FilterResult:
+    """The filter on the nominal model: reshape until proven there (the loop of the module docstring)."""
     saturation = saturation_rad(robot)
     current = commanded
     history: list[FilterIteration] = []

@@ -33,7 +33,54 @@ from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.standing import StandVerdict, judge, supported_on_feet
 from robot_rise.trajectory import Trajectory
 
-__all__ = ["Proof", "Permit", "check", "prove", "prove_with_violations", "execution_permit", "scene_digest"]
+__all__ = ["Proof", "VariantVerdict", "Permit", "prove", "prove_with_violations", "execution_permit", "scene_digest"]
+
+
+@dataclass(frozen=True)
+class VariantVerdict:
+    """How one variant fared.
+
+    Attributes:
+        label: the variant's label.
+        standing: the judge's verdict, and no self-collision beyond the tolerance.
+        reason: why not (empty when standing).
+        final_tilt_deg: torso tilt at the end [deg].
+        final_height_fraction: torso height at the end / the stand keyframe's.
+        peak_torque_ratio: largest torque / envelope ratio (the variant's own envelope).
+        min_zmp_margin_m: smallest ZMP margin while on the feet [m]; None if never on the feet.
+    """
+
+    label: str
+    standing: bool
+    reason: str
+    final_tilt_deg: float
+    final_height_fraction: float
+    peak_torque_ratio: float
+    min_zmp_margin_m: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "label": self.label,
+            "standing": self.standing,
+            "reason": self.reason,
+            "final_tilt_deg": self.final_tilt_deg,
+            "final_height_fraction": self.final_height_fraction,
+            "peak_torque_ratio": self.peak_torque_ratio,
+            "min_zmp_margin_m": self.min_zmp_margin_m,
+        }
+
+    @classmethod
+    def from_dict(cls, obj: Mapping[str, Any]) -> VariantVerdict:
+        zmp = obj.get("min_zmp_margin_m")
+        return cls(
+            str(obj["label"]),
+            bool(obj["standing"]),
+            str(obj.get("reason", "")),
+            float(obj["final_tilt_deg"]),
+            float(obj["final_height_fraction"]),
+            float(obj["peak_torque_ratio"]),
+            None if zmp is None else float(zmp),
+        )
 
 
 @dataclass(frozen=True)
@@ -63,6 +110,8 @@ class Proof:
         max_self_penetration_m: deepest self contact [m].
         stood_from_s: start of the final standing stretch [s]; None if it never stood.
         diagnosis: why it did not stand (:func:`describe_fall`); '' when standing.
+        ensemble: each model variant's verdict (``robot_rise.filter.ensemble``), empty when the
+            ensemble was not replayed; ``proven`` then also means every variant stands.
     """
 
     proven: bool
@@ -85,6 +134,32 @@ class Proof:
     max_self_penetration_m: float
     stood_from_s: float | None
     diagnosis: str = ""
+    ensemble: tuple[VariantVerdict, ...] = ()
+
+    @property
+    def worst_tilt_deg(self) -> float | None:
+        """Largest final torso tilt over the ensemble [deg] (None without one)."""
+        return max((v.final_tilt_deg for v in self.ensemble), default=None)
+
+    @property
+    def worst_height_fraction(self) -> float | None:
+        """Smallest final torso height fraction over the ensemble (None without one)."""
+        return min((v.final_height_fraction for v in self.ensemble), default=None)
+
+    @property
+    def worst_torque_ratio(self) -> float | None:
+        """Largest peak torque / envelope over the ensemble (None without one)."""
+        return max((v.peak_torque_ratio for v in self.ensemble), default=None)
+
+    @property
+    def worst_zmp_margin_m(self) -> float | None:
+        """Smallest ZMP margin on the feet over the ensemble [m] (None without one, or never on the feet)."""
+        return min((v.min_zmp_margin_m for v in self.ensemble if v.min_zmp_margin_m is not None), default=None)
+
+    @property
+    def ensemble_standing(self) -> int:
+        """How many variants stand."""
+        return sum(v.standing for v in self.ensemble)
 
     def to_dict(self) -> dict[str, Any]:
         """The proof's entries of a trajectory's ``report``, in the file's key order."""
@@ -109,6 +184,18 @@ class Proof:
             "max_self_penetration_m": self.max_self_penetration_m,
             "stood_from_s": self.stood_from_s,
             **({"diagnosis": self.diagnosis} if self.diagnosis else {}),
+            **({"ensemble": self._ensemble_dict()} if self.ensemble else {}),
+        }
+
+    def _ensemble_dict(self) -> dict[str, Any]:
+        return {
+            "standing": self.ensemble_standing,
+            "size": len(self.ensemble),
+            "worst_tilt_deg": self.worst_tilt_deg,
+            "worst_height_fraction": self.worst_height_fraction,
+            "worst_torque_ratio": self.worst_torque_ratio,
+            "worst_zmp_margin_m": self.worst_zmp_margin_m,
+            "variants": [v.to_dict() for v in self.ensemble],
         }
 
     @classmethod
@@ -125,7 +212,7 @@ class Proof:
         values: dict[str, Any] = {}
         for key, (read, what) in _READERS.items():
             if key not in report:
-                if key == "diagnosis":
+                if key in _OPTIONAL:
                     continue
                 raise FormatError(f"{where}: proof entry {key!r} missing")
             try:
@@ -181,6 +268,16 @@ def _numbers_by_name(v: Any) -> dict[str, float]:
 
 
 # Each entry of a Proof in the report: its reader and, for the error message, what it must be.
+def _ensemble(v: Any) -> tuple[VariantVerdict, ...]:
+    if not isinstance(v, Mapping) or not isinstance(v.get("variants"), list):
+        raise TypeError
+    try:
+        return tuple(VariantVerdict.from_dict(x) for x in v["variants"])
+    except (KeyError, AttributeError) as e:
+        raise TypeError from e
+
+
+_OPTIONAL = ("diagnosis", "ensemble")  # absent in files written before them
 _READERS: dict[str, tuple[Callable[[Any], Any], str]] = {
     "proven": (_bool, "true or false"),
     "problems": (_strings, "a list of strings"),
@@ -202,6 +299,7 @@ _READERS: dict[str, tuple[Callable[[Any], Any], str]] = {
     "max_self_penetration_m": (_number, "a number"),
     "stood_from_s": (_optional_number, "a number or null"),
     "diagnosis": (_str, "a string"),
+    "ensemble": (_ensemble, "an object with a list of variant verdicts"),
 }
 
 
@@ -282,26 +380,6 @@ def prove(
         saturation_rad=saturation_rad(robot), want_violations=False,
     )
     return rec, verdict, proof
-
-
-def check(
-    robot: Robot,
-    trajectory: Trajectory,
-    *,
-    scene: str | os.PathLike[str] | None = None,
-    config: FilterConfig = FilterConfig(),
-) -> Proof:
-    """Replay ``trajectory`` from its start and return its proof (what ``robot-rise check`` does).
-
-    Args:
-        robot: the robot.
-        trajectory: the servo targets.
-        scene: the scene to replay it in (default: the scene its report was proven in, else flat).
-        config: the envelope margin, tolerances and the judge's hold time.
-    """
-    if scene is None:
-        scene = str(trajectory.report.get("scene") or "flat")
-    return prove(robot, trajectory, scene=scene, config=config)[2]
 
 
 def prove_with_violations(

@@ -37,6 +37,7 @@ from robot_rise.sim.balance import support_margin, zmp_point_mass_many
 from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
 from robot_rise.servo import ServoArrays, servo_arrays
+from robot_rise.sim.variants import ModelVariant, apply_to_model
 from robot_rise.trajectory import Trajectory
 
 __all__ = ["Recording", "Player", "play", "DEFAULT_RECORD_HZ", "DEFAULT_HOLD_S"]
@@ -136,12 +137,28 @@ class Player:
         voltage_v: float = SUPPLY_VOLTAGE_V,
         friction_scale: float = 1.0,
         mass_scale: float = 1.0,
+        variant: ModelVariant | None = None,
     ) -> None:
+        """
+        Args:
+            robot: the robot.
+            scene: scene name or MJCF path; None for the robot alone.
+            voltage_v: servo supply [V] (a ``variant``'s replaces it).
+            friction_scale: every geom's sliding friction times this.
+            mass_scale: every body's mass and inertia times this.
+            variant: a model variant (``robot_rise.sim.variants``) applied to the composed model;
+                its input changes (latency, ticks, start) are the caller's to apply.
+        """
         self.robot = robot
         self.scene = scene
+        self.variant = variant
+        if variant is not None:
+            voltage_v = variant.voltage_v
         self.model = compose(robot, scene, with_actuators=True, voltage_v=voltage_v, friction_scale=friction_scale, mass_scale=mass_scale)
         self.data = mujoco.MjData(self.model)
         self.index: ModelIndex = model_index(self.model, robot)
+        if variant is not None:
+            apply_to_model(self.model, self.index, variant)
         if self.index.actuators.size != robot.n_joints:
             raise RobotRiseError(f"composed model has {self.index.actuators.size} servos for {robot.n_joints} joints")
         self.servos: ServoArrays = servo_arrays(robot.servo_datasheets(), voltage_v)
