@@ -3,7 +3,9 @@
 Single-threaded against a monotonic deadline: cycle k starts at ``t0 + k / rate``. Each cycle:
 interpolate the trajectory, pass the target through :func:`drivers.safety.safe_target`, one
 sync write of goals, one (fast) sync read of feedback, judge it with
-:func:`drivers.safety.evaluate_feedback`, log a row. On a fault or Ctrl-C: a controlled stop by
+:func:`drivers.safety.evaluate_feedback` (and, when ``ExecutorConfig.expected`` gives where the
+joints should be, :func:`drivers.safety.evaluate_expected` instead of the absolute tracking
+limit), log a row. On a fault or Ctrl-C: a controlled stop by
 policy, then (for HOLD) bounded recovery of shut-down servos so the robot keeps holding.
 A cycle that starts more than one period late (a stall of the host or the bus) re-anchors the
 schedule: the rest of the trajectory is delayed, never replayed back to back (which would move
@@ -30,12 +32,14 @@ from drivers.control_table import WATCHDOG_UNIT_S
 from drivers.errors import CommunicationError, SafetyError
 from drivers.group import GOAL_PWM, GOAL_PWM_SIZE, Feedback, ServoGroup
 from drivers.safety import (
+    ExpectedPositions,
     Fault,
     FaultKind,
     SafetyLimits,
     StopPolicy,
     approach_path,
     check_start,
+    evaluate_expected,
     evaluate_feedback,
     limp_pwm_ramp,
     require_inside_limits,
@@ -43,12 +47,15 @@ from drivers.safety import (
 )
 from drivers.startup import RecoveryReport, arm_watchdog, disarm_watchdog, recover
 
-__all__ = ["ExecutorConfig", "CycleStats", "ExecutionReport", "Executor", "interpolate"]
+__all__ = ["ExecutorConfig", "CycleStats", "ExecutionReport", "Executor", "interpolate", "DEFAULT_RATE_HZ"]
 
 _log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 MIN_RATE_HZ = 20.0  # [Hz] slowest control rate accepted
+# The control rate. The core's robot_rise.filter.command_limits.DEFAULT_RATE_HZ repeats it (the
+# filter proves trajectories for it; sim_tests/test_command_limits.py holds them equal).
+DEFAULT_RATE_HZ = 100.0  # [Hz]
 
 
 @dataclass(frozen=True)
@@ -70,9 +77,15 @@ class ExecutorConfig:
         cpu_latency_us: while streaming, keep every CPU out of idle states slower to leave
             than this [us] (Linux PM QoS, :func:`drivers.clock.cpu_wakeup_latency`; skipped with
             a note where not permitted); None: CPUs idle freely (less power, later wake-ups).
+        expected: where the joints should be over trajectory time (map order): from the
+            trajectory's first row on, tracking is watched against it (per-joint tolerance,
+            debounced) instead of against ``SafetyLimits.max_tracking_error_rad``. Its times are
+            the trajectory's (cycle time times ``speed``, after any approach); each joint's
+            distance from it at the first watched cycle (the start, within the start
+            tolerance) is added to its tolerance. None: the absolute limit throughout.
     """
 
-    rate_hz: float = 100.0
+    rate_hz: float = DEFAULT_RATE_HZ
     speed: float = 1.0
     approach_s: float | None = None
     stop_policy: StopPolicy = StopPolicy.HOLD
@@ -82,10 +95,11 @@ class ExecutorConfig:
     log_path: Path | None = None
     realtime_priority: int | None = None
     cpu_latency_us: int | None = 0
+    expected: ExpectedPositions | None = None
 
     def __post_init__(self) -> None:
         # below MIN_RATE_HZ each step of the velocity limit becomes a jump the servo makes at
-        # full speed (3 rad/s x 50 ms = 0.15 rad)
+        # full speed (4.8 rad/s x 50 ms = 0.24 rad)
         if not MIN_RATE_HZ <= self.rate_hz <= 2000.0:
             raise SafetyError(f"rate {self.rate_hz:g} Hz outside {MIN_RATE_HZ:g}..2000 Hz",
                               hint="the default is 100 Hz; the bus's own limit is checked before streaming")
@@ -161,6 +175,9 @@ class ExecutionReport:
         faults: faults that caused the stop (empty if completed).
         stats: :class:`CycleStats`.
         max_tracking_error_rad: largest |present - previous command| seen [rad].
+        max_expected_error_rad: largest |present - expected| seen [rad] (None: not watched).
+        max_expected_ratio: largest |present - expected| / tolerance seen (None: not watched;
+            above 1 only for fewer cycles in a row than the debounce, or at a fault).
         clamped_cycles: cycles in which the safety layer changed the target.
         stop_policy: the policy applied at the end.
         recovery: recovery outcome if one was attempted.
@@ -178,6 +195,8 @@ class ExecutionReport:
     log_path: Path | None = None
     commands: FloatArray | None = field(default=None, repr=False)
     timing: str = ""
+    max_expected_error_rad: float | None = None
+    max_expected_ratio: float | None = None
 
     @property
     def interrupted(self) -> bool:
@@ -210,6 +229,9 @@ class Executor:
         self.config = config or ExecutorConfig()
         if len(limits.lower_rad) != len(group.ids):
             raise SafetyError(f"limits for {len(limits.lower_rad)} joints, group has {len(group.ids)}")
+        expected = self.config.expected
+        if expected is not None and expected.q_rad.shape[1] != len(group.ids):
+            raise SafetyError(f"expected positions for {expected.q_rad.shape[1]} joints, group has {len(group.ids)}")
 
     def prepare(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray,
                 q_present: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -278,6 +300,12 @@ class Executor:
             missing = [sid for sid, ok in zip(group.ids, fb0.valid) if not ok]
             raise SafetyError(f"no present position from servo(s) {missing}; refusing to start")
         t_run, q_run = self.prepare(joint_names, t, q, fb0.position_rad)
+        # the trajectory's first row starts after any approach; expected positions are watched from there
+        t_first = float(t_run[len(t_run) - np.asarray(t).size])
+        expected = cfg.expected
+        tolerance: FloatArray | None = None  # expected.tolerance_rad + each joint's offset at the start
+        beyond = np.zeros(len(group.ids), dtype=np.int64)
+        max_expected = max_ratio = 0.0
         watchdog_s = self._armed_watchdog_s()
         pwm_limits = self._pwm_limits()
         dt = 1.0 / cfg.rate_hz
@@ -340,10 +368,23 @@ class Executor:
                     if fb.valid[j]:
                         q_cmd[j] = float(np.clip(fb.position_rad[j], limits.lower_rad[j], limits.upper_rad[j]))
                 commands.append(q_cmd)
+                tau = (k * dt - t_first) * cfg.speed  # trajectory time of this cycle
+                watched = expected if expected is not None and tau >= -1e-9 else None
                 found = evaluate_feedback(
-                    limits, q_command_rad=q_tracked, q_present_rad=fb.position_rad, valid=fb.valid,
-                    hardware_error=fb.alert, temperature_c=fb.temperature_c, voltage_v=fb.voltage_v,
-                    consecutive_failures=group.consecutive_failures)
+                    limits, q_command_rad=q_tracked if watched is None else None, q_present_rad=fb.position_rad,
+                    valid=fb.valid, hardware_error=fb.alert, temperature_c=fb.temperature_c,
+                    voltage_v=fb.voltage_v, consecutive_failures=group.consecutive_failures)
+                if watched is not None:
+                    q_expected = interpolate(watched.t_s, watched.q_rad, tau)
+                    err = np.abs(fb.position_rad - q_expected)
+                    if tolerance is None:  # a start within the start tolerance is accepted as it is
+                        tolerance = watched.tolerance_rad + np.where(fb.valid, err, 0.0)
+                    beyond, off = evaluate_expected(fb.position_rad, q_expected, tolerance, fb.valid, beyond,
+                                                    watched.debounce_cycles(dt))
+                    found = [*found, *off]
+                    if fb.valid.any():
+                        max_expected = max(max_expected, float(np.max(err[fb.valid])))
+                        max_ratio = max(max_ratio, float(np.max((err / tolerance)[fb.valid])))
                 if fb.valid.all():
                     max_track = max(max_track, float(np.max(np.abs(fb.position_rad - q_tracked))))
                 elif fb.valid.any():
@@ -380,9 +421,12 @@ class Executor:
         stats = CycleStats.from_samples(dt, lateness, work, cpu, resyncs=resyncs, wait_cpu=wait_cpu)
         if resyncs:
             _log.warning("%d stall(s) longer than a period: schedule re-anchored, motion delayed", resyncs)
+        watched_any = tolerance is not None
         return ExecutionReport(not faults, tuple(faults), stats, max_track, clamped_cycles,
                                cfg.stop_policy, recovery, cfg.log_path,
-                               np.array(commands) if commands else None)
+                               np.array(commands) if commands else None,
+                               max_expected_error_rad=max_expected if watched_any else None,
+                               max_expected_ratio=max_ratio if watched_any else None)
 
     def _armed_watchdog_s(self) -> float | None:
         """The Bus Watchdog timeout the servos have armed [s] (the shortest), None if none is.

@@ -5,6 +5,10 @@
   approach from the present posture is requested (:func:`check_start`, :func:`approach_path`).
 - Each cycle's feedback is judged by :func:`evaluate_feedback`: tracking error, hardware error
   bits, temperature, input voltage, consecutive communication failures.
+- Tracking is watched either against the last command (an absolute ``max_tracking_error_rad``)
+  or, when the caller knows where the joints should be (a proof's prediction), against
+  :class:`ExpectedPositions` by :func:`evaluate_expected`: a per-joint tolerance held for a
+  short debounce.
 - Stop policies: hold the present position, or go limp slowly (Goal PWM ramps to zero, then
   torque off). Never a jump: a stop target is always the present position.
 
@@ -25,7 +29,12 @@ from drivers.control_table import HardwareErrorBits
 from drivers.errors import SafetyError
 
 __all__ = [
+    "MAX_VELOCITY_RAD_S",
+    "MAX_TRACKING_ERROR_RAD",
     "SafetyLimits",
+    "EXPECTED_DEBOUNCE_S",
+    "ExpectedPositions",
+    "evaluate_expected",
     "StopPolicy",
     "FaultKind",
     "Fault",
@@ -44,6 +53,16 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+# The command speed limit: every streamed target moves at most this x the cycle period from the
+# previous one. The core's robot_rise.filter.command_limits.DEFAULT_MAX_SPEED_RAD_S repeats it
+# (the filter proves trajectories under it; sim_tests/test_command_limits.py holds them equal).
+# 4.8 rad/s is the XM430-W350's no-load speed at 12 V (46 rpm, datasheet): a command faster than
+# the servo can turn only builds up tracking error, so this lets every feasible motion through and
+# still stops a jump (0.048 rad per 100 Hz cycle).
+MAX_VELOCITY_RAD_S = 4.8  # [rad/s]
+MAX_TRACKING_ERROR_RAD = 0.35  # [rad] |present - last command| that aborts when no prediction is watched
+EXPECTED_DEBOUNCE_S = 0.03  # [s] a deviation from the expected positions must last this long (3 cycles at 100 Hz)
 
 
 class StopPolicy(enum.Enum):
@@ -103,8 +122,8 @@ class SafetyLimits:
 
     lower_rad: FloatArray
     upper_rad: FloatArray
-    max_velocity_rad_s: float = 3.0
-    max_tracking_error_rad: float = 0.35
+    max_velocity_rad_s: float = MAX_VELOCITY_RAD_S
+    max_tracking_error_rad: float = MAX_TRACKING_ERROR_RAD
     start_tolerance_rad: float = 0.1
     approach_velocity_rad_s: float = 0.3
     max_temperature_c: float = 70.0
@@ -132,6 +151,75 @@ class SafetyLimits:
     def max_step_rad(self, dt_s: float) -> float:
         """Largest command change in one cycle of ``dt_s`` [s]."""
         return self.max_velocity_rad_s * dt_s
+
+
+@dataclass(frozen=True)
+class ExpectedPositions:
+    """Where the joints should be while a trajectory runs (e.g. a proof's replay), in map order.
+
+    Watched instead of the absolute tracking limit: a joint farther than its tolerance from its
+    expected position for ``debounce_s`` is a TRACKING fault (:func:`evaluate_expected`).
+
+    Attributes:
+        t_s: trajectory time [s], shape (K,), strictly increasing (0 = the trajectory's first row).
+        q_rad: expected positions [rad], shape (K, n).
+        tolerance_rad: largest accepted |present - expected| per joint [rad], shape (n,).
+        debounce_s: how long a joint may stay beyond its tolerance before it is a fault [s].
+    """
+
+    t_s: FloatArray
+    q_rad: FloatArray
+    tolerance_rad: FloatArray
+    debounce_s: float = EXPECTED_DEBOUNCE_S
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t_s, dtype=float)
+        q = np.array(self.q_rad, dtype=float)
+        tol = np.array(self.tolerance_rad, dtype=float)
+        if t.ndim != 1 or t.size < 1 or q.ndim != 2 or q.shape[0] != t.size or tol.shape != (q.shape[1],):
+            raise SafetyError(f"expected positions: shapes t{t.shape} q{q.shape} tolerance{tol.shape} disagree")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q)) and np.all(np.isfinite(tol))):
+            raise SafetyError("expected positions contain NaN or infinite values")
+        if np.any(np.diff(t) <= 0):
+            raise SafetyError("expected positions: times must increase strictly")
+        if np.any(tol <= 0) or not (self.debounce_s >= 0 and math.isfinite(self.debounce_s)):
+            raise SafetyError("expected positions: tolerances must be positive and the debounce >= 0")
+        for a in (t, q, tol):
+            a.setflags(write=False)
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "q_rad", q)
+        object.__setattr__(self, "tolerance_rad", tol)
+
+    def debounce_cycles(self, dt_s: float) -> int:
+        """Consecutive cycles of ``dt_s`` [s] beyond the tolerance that make a fault (at least 1)."""
+        return max(1, int(math.ceil(self.debounce_s / dt_s - 1e-9)))
+
+
+def evaluate_expected(q_present_rad: FloatArray, q_expected_rad: FloatArray, tolerance_rad: FloatArray,
+                      valid: NDArray[np.bool_], beyond_cycles: NDArray[np.int64],
+                      debounce_cycles: int) -> tuple[NDArray[np.int64], list[Fault]]:
+    """Judge one cycle's present positions against the expected ones. Pure.
+
+    Args:
+        q_present_rad: present positions [rad] (NaN where not valid), shape (n,).
+        q_expected_rad: expected positions [rad], shape (n,).
+        tolerance_rad: per joint [rad], shape (n,).
+        valid: which entries were read this cycle, shape (n,).
+        beyond_cycles: consecutive cycles each joint has been beyond its tolerance so far, shape (n,).
+        debounce_cycles: that many in a row make a TRACKING fault.
+
+    Returns:
+        (the updated count per joint: +1 beyond, 0 within, unchanged where not read; the faults).
+    """
+    err = np.abs(np.asarray(q_present_rad) - np.asarray(q_expected_rad))
+    v = np.asarray(valid, dtype=bool)
+    beyond = v & (err > tolerance_rad)
+    count = np.where(beyond, beyond_cycles + 1, np.where(v, 0, beyond_cycles))
+    faults = [Fault(FaultKind.TRACKING, int(i), float(err[i]), float(tolerance_rad[i]),
+                    f"joint {i}: {err[i]:.3f} rad from its expected position for {int(count[i])} cycles "
+                    f"(tolerance {tolerance_rad[i]:.3f} rad)")
+              for i in np.flatnonzero(count >= debounce_cycles)]
+    return count, faults
 
 
 def clamp_to_limits(q_rad: FloatArray, lower_rad: FloatArray, upper_rad: FloatArray) -> FloatArray:
@@ -281,14 +369,15 @@ def approach_path(q_present_rad: FloatArray, q_first_rad: FloatArray, duration_s
     return t, q0 + blend[:, None] * (q1 - q0)
 
 
-def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray, q_present_rad: FloatArray,
+def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray | None, q_present_rad: FloatArray,
                       valid: NDArray[np.bool_], hardware_error: NDArray[np.int64],
                       temperature_c: FloatArray, voltage_v: FloatArray,
                       consecutive_failures: NDArray[np.int64]) -> list[Fault]:
     """Judge one cycle's feedback. Pure: returns every fault found (empty list = carry on).
 
     Args:
-        q_command_rad: the command the servos have been tracking [rad], shape (n,).
+        q_command_rad: the command the servos have been tracking [rad], shape (n,); None when
+            tracking is watched against expected positions instead (:func:`evaluate_expected`).
         q_present_rad: present positions [rad] (NaN where not valid), shape (n,).
         valid: which entries were read this cycle, shape (n,).
         hardware_error: Hardware Error Status bits (or just the alert bit 0x80), shape (n,).
@@ -297,7 +386,8 @@ def evaluate_feedback(limits: SafetyLimits, *, q_command_rad: FloatArray, q_pres
         consecutive_failures: cycles in a row without data, per servo, shape (n,).
     """
     v = np.asarray(valid, dtype=bool)
-    err = np.abs(np.asarray(q_present_rad) - np.asarray(q_command_rad))
+    err = (np.zeros(len(v)) if q_command_rad is None
+           else np.abs(np.asarray(q_present_rad) - np.asarray(q_command_rad)))
     temp = np.asarray(temperature_c)
     volt = np.asarray(voltage_v)
     # the usual cycle: every servo read and within every threshold. Equivalent to the checks

@@ -211,3 +211,74 @@ def test_that_mockbus_serve_prints_a_device_that_servos_scan_can_open(
         if proc.stdout is not None:
             proc.stdout.close()
     assert proc.returncode == 0
+
+
+def _limits_entry(robot: Robot, **over: object) -> dict:
+    from robot_rise.filter.command_limits import command_limits_for
+
+    return command_limits_for(robot, **over).to_dict()  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("limits", "args", "message", "hint"),
+    [
+        ({"rate_hz": 50.0}, [], "the trajectory was proven for a 50 Hz control rate, not the 100 Hz requested",
+         "hint: use --rate 50"),
+        ({"max_speed_rad_s": 2.0}, [], "proven under a 2 rad/s command speed limit, the executor enforces 4.8 rad/s",
+         "hint: prove it again"),
+        ({}, ["--speed", "1.5"], "--speed 1.5 would stream the trajectory faster than it was proven",
+         "hint: use --speed 1 or below"),
+    ],
+    ids=["other-rate", "other-speed-limit", "faster"],
+)
+def test_that_execute_refuses_a_trajectory_proven_under_other_command_limits(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str], limits, args, message, hint) -> None:
+    path = _trajectory(robot, tmp_path / "arm.json", _proven_report(robot, command_limits=_limits_entry(robot, **limits)))
+    assert main(["execute", str(path), "--mock", "--yes", *args]) == 2
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and message in lines[0], err
+    assert hint in err and "preflight" not in out  # refused before the bus was touched
+
+
+def test_that_execute_runs_a_file_without_command_limits_with_a_warning(
+        robot: Robot, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _trajectory(robot, tmp_path / "old.json", _proven_report(robot))
+    assert main(["execute", str(path), "--mock", "--yes"]) == 0
+    out, err = capsys.readouterr()
+    assert "warning: the trajectory's report records no command limits" in err and "completed" in out
+    assert "tracking watched" not in out
+
+
+@pytest.fixture(scope="module")
+def predicted_arm(robot: Robot, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The arm motion, proven on the model, with its command limits and predicted positions."""
+    from robot_rise.filter import prove
+    from robot_rise.filter.prediction import predicted_positions
+    from robot_rise.trajectory import read_trajectory
+
+    path = _trajectory(robot, tmp_path_factory.mktemp("arm") / "arm.json", {})
+    traj = read_trajectory(path)
+    rec, _, proof = prove(robot, traj, scene="flat")
+    assert proof.proven, proof.problems
+    write_trajectory(path, traj.with_report(**proof.to_dict(), command_limits=_limits_entry(robot),
+                                            predicted=predicted_positions(rec)))
+    return path
+
+
+def test_that_execute_on_the_twin_watches_the_proofs_predicted_positions(
+        predicted_arm: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["execute", str(predicted_arm), "--mock", "--twin", "--yes"]) == 0
+    out, err = capsys.readouterr()
+    assert re.search(r"tracking watched against the proof's predicted positions \(tolerance [\d.]+\.\.[\d.]+ rad\)", out)
+    assert "safety-clamped cycles 0" in out and "completed" in out and "warning" not in err
+    match = re.search(r"largest distance from the proof's predicted positions [\d.]+ rad \(([\d.]+) of its tolerance\)", out)
+    assert match and float(match.group(1)) < 1.0, out
+
+
+def test_that_execute_at_another_speed_watches_the_command_not_the_prediction(
+        predicted_arm: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["execute", str(predicted_arm), "--mock", "--yes", "--speed", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "note: tracking watched against the command (0.35 rad), not the proof's predicted positions" in out
+    assert "largest distance from the proof's predicted positions" not in out

@@ -7,6 +7,7 @@ moved more than the per-cycle step limit (:func:`_assert_goals_safe`).
 from __future__ import annotations
 
 import math
+import re
 import struct
 
 import numpy as np
@@ -16,7 +17,7 @@ from drivers.control_table import RAD_PER_TICK, HardwareErrorBits
 from drivers.errors import SafetyError
 from drivers.executor import Executor, ExecutorConfig, interpolate
 from drivers.protocol import Instruction
-from drivers.safety import FaultKind, StopPolicy
+from drivers.safety import FaultKind, SafetyLimits, StopPolicy
 from drivers.servo_map import ServoMap
 from drivers.startup import engage, preflight
 from hil_tests.conftest import Rig, make_rig
@@ -61,14 +62,14 @@ def _goal_writes(r: Rig) -> list[dict[int, int]]:
     return out
 
 
-def _assert_goals_safe(r: Rig) -> None:
+def _assert_goals_safe(r: Rig, rate: float = RATE) -> None:
     """Every goal inside the limits; every streamed goal within one step of the previous one.
 
     The final write of a stop after a fault is goal = present position, which may differ from
     the last command by the tracking lag; at a normal end it is the last command again. It is
     checked against both.
     """
-    step_ticks = math.ceil(MAX_V / RATE / RAD_PER_TICK) + 1
+    step_ticks = math.ceil(MAX_V / rate / RAD_PER_TICK) + 1
     last: dict[int, int] = {}
     writes = _goal_writes(r)
     streamed = writes[-2] if len(writes) > 1 else {}
@@ -452,3 +453,177 @@ def test_that_a_limp_stop_also_reaches_a_quarantined_servo(servo_map: ServoMap) 
     assert not rep.completed and 2 in r.group.quarantined
     # servo 2 stopped answering, not listening: it got the ramp and the torque off too
     assert not r.mock.servo(2).torque_on
+
+
+def _too_fast(servo_map: ServoMap):
+    """Every joint swung at up to ~6 rad/s on irregular rows, one row 1 mrad past a limit."""
+    t = np.concatenate([np.linspace(0.0, 0.3, 4), np.linspace(0.32, 1.0, 9), [1.003, 1.4]])
+    mid = 0.5 * (servo_map.lower_rad + servo_map.upper_rad)
+    swing = np.minimum(0.6, 0.4 * (servo_map.upper_rad - servo_map.lower_rad))
+    q = mid + np.sin(2 * np.pi * t / 0.6)[:, None] * swing[None, :]
+    q[-2, 0] = servo_map.upper_rad[0] + 0.001
+    return servo_map.joint_names, t, q
+
+
+def _conformed(servo_map: ServoMap, names, t, q, *, rate_hz: float = RATE):
+    from robot_rise.filter.command_limits import CommandLimits, conform
+    from robot_rise.posture import Posture
+    from robot_rise.trajectory import Trajectory
+
+    limits = CommandLimits(servo_map.joint_names, servo_map.lower_rad, servo_map.upper_rad, MAX_V, rate_hz)
+    start = Posture("op3", np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), dict(zip(names, q[0])))
+    out = conform(Trajectory("op3", tuple(names), t, q, start), limits)
+    return names, out.t, out.q
+
+
+@pytest.mark.parametrize(("rate", "speed"), [(RATE, 1.0), (50.0, 1.0), (RATE, 0.7)])
+def test_that_a_too_fast_trajectory_conformed_by_the_core_streams_without_a_clamp(
+        servo_map: ServoMap, rate: float, speed: float) -> None:
+    names, t, q = _too_fast(servo_map)
+    raw = Executor(_ready(servo_map, initial_rad=q[0]).group, SafetyLimits(servo_map.lower_rad, servo_map.upper_rad,
+                   max_velocity_rad_s=MAX_V), ExecutorConfig(rate_hz=rate, speed=speed)).run(names, t, q)
+    assert raw.completed and raw.clamped_cycles > 10
+    names, tc, qc = _conformed(servo_map, names, t, q, rate_hz=rate)
+    r = _ready(servo_map, initial_rad=qc[0])
+    rep = Executor(r.group, r.limits(max_velocity_rad_s=MAX_V), ExecutorConfig(rate_hz=rate, speed=speed)).run(names, tc, qc)
+    assert rep.completed and rep.clamped_cycles == 0
+    assert tc[-1] > t[-1]  # slowed, not clipped
+    _assert_goals_safe(r, rate)
+
+
+def _expected(servo_map: ServoMap, traj, tolerance_rad: float):
+    from drivers.safety import ExpectedPositions
+
+    _, t, q = traj
+    return ExpectedPositions(t, q, np.full(len(servo_map), tolerance_rad))
+
+
+def test_that_tracking_is_watched_against_the_expected_positions_instead_of_the_command(servo_map: ServoMap) -> None:
+    traj = _trajectory(servo_map, amplitude=1.0)
+    # the first-order servo lags its 1 rad/s command by ~0.04 rad: beyond an absolute 0.02 rad ...
+    r = _ready(servo_map)
+    rep = Executor(r.group, r.limits(max_velocity_rad_s=MAX_V, max_tracking_error_rad=0.02),
+                   ExecutorConfig(rate_hz=RATE)).run(*traj)
+    assert {f.kind for f in rep.faults} == {FaultKind.TRACKING} and rep.max_expected_ratio is None
+    # ... and within 0.08 rad of where it is expected to be: the run completes
+    r = _ready(servo_map)
+    rep = Executor(r.group, r.limits(max_velocity_rad_s=MAX_V, max_tracking_error_rad=0.02),
+                   ExecutorConfig(rate_hz=RATE, expected=_expected(servo_map, traj, 0.08))).run(*traj)
+    assert rep.completed, rep.faults
+    assert rep.max_tracking_error_rad > 0.02 and rep.max_expected_ratio is not None and rep.max_expected_ratio < 1
+    assert rep.max_expected_error_rad is not None and rep.max_expected_error_rad < 0.08
+
+
+def _first_cycle_beyond(log_path, servo_map: ServoMap, expected, joint: int, dt: float) -> int:
+    """The first logged cycle whose present position of ``joint`` is beyond its tolerance (the
+    executor's rule: the tolerance plus the joint's distance at the first cycle)."""
+    rows = [line.split(",") for line in log_path.read_text().splitlines()[1:]]
+    n = len(servo_map)
+    pos = np.array([float(row[2 + n + joint]) for row in rows])
+    want = np.array([interpolate(expected.t_s, expected.q_rad, int(row[0]) * dt)[joint] for row in rows])
+    tolerance = expected.tolerance_rad[joint] + abs(pos[0] - want[0])
+    return int(rows[int(np.argmax(np.abs(pos - want) > tolerance))][0])
+
+
+def test_that_a_joint_blocked_mid_motion_stops_the_run_within_100_ms_of_leaving_its_tolerance(
+        servo_map: ServoMap, tmp_path) -> None:
+    traj = _trajectory(servo_map, amplitude=1.0)
+    expected = _expected(servo_map, traj, 0.08)
+    r = _ready(servo_map)
+    r.mock.faults.at(r.clock.now() + 0.4, lambda bus: bus.faults.block(9))
+    log = tmp_path / "run.csv"
+    rep = _run(r, traj, expected=expected, log_path=log)
+    j = servo_map.ids.index(9)
+    assert not rep.completed and [(f.kind, f.index) for f in rep.faults] == [(FaultKind.TRACKING, j)]
+    fault_cycle = rep.stats.cycles - 1
+    beyond = _first_cycle_beyond(log, servo_map, expected, j, 1 / RATE)
+    assert 0.4 * RATE < beyond <= fault_cycle <= beyond + 0.1 * RATE
+    _assert_goals_safe(r)
+
+
+@pytest.fixture(scope="module")
+def proven_get_up(tmp_path_factory: pytest.TempPathFactory):
+    """``make demo``'s get-up (prone, seed 0) as the filter is to write it: conformed to the
+    executor's limits, proven, with its command limits and predicted positions in the report."""
+    from robot_rise.filter import prove
+    from robot_rise.filter.command_limits import (
+        COMMAND_LIMITS_KEY,
+        command_limits_for,
+        conform,
+    )
+    from robot_rise.filter.prediction import (
+        PREDICTED_KEY,
+        PredictedPositions,
+        predicted_positions,
+    )
+    from robot_rise.model import load_robot
+    from robot_rise.rise import rise
+    from robot_rise.sampling import sample_lying
+    from robot_rise.trajectory import write_trajectory
+
+    robot = load_robot()
+    result = rise(robot, sample_lying(robot, "prone", 1, 0).postures[0], seed=0)
+    assert result.proven, result.reason
+    limits = command_limits_for(robot)
+    traj = conform(result.trajectory, limits)
+    rec, _, proof = prove(robot, traj, scene="flat")
+    assert proof.proven, proof.problems
+    predicted = predicted_positions(rec)  # no ensemble: the floor alone, the strictest watch
+    traj = traj.with_report(**proof.to_dict(), **{COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted})
+    path = tmp_path_factory.mktemp("get_up") / "rise.json"
+    write_trajectory(path, traj)
+    return robot, path, traj, PredictedPositions.from_dict(predicted)
+
+
+def test_that_a_proven_get_up_runs_on_the_twin_unclamped_and_within_its_prediction(
+        proven_get_up, capsys: pytest.CaptureFixture[str]) -> None:
+    from robot_rise.cli import main
+
+    _, path, _, _ = proven_get_up
+    assert main(["execute", str(path), "--mock", "--twin", "--yes"]) == 0
+    out = capsys.readouterr().out
+    assert "tracking watched against the proof's predicted positions" in out
+    assert "safety-clamped cycles 0" in out and "FAULT" not in out and "completed" in out
+    ratio = float(re.search(r"\(([\d.]+) of its tolerance\)", out).group(1))  # type: ignore[union-attr]
+    assert ratio < 1.0
+    assert re.search(r"twin: .*: upright", out)
+
+
+def test_that_a_joint_blocked_mid_get_up_on_the_twin_stops_it_within_100_ms_of_leaving_its_tolerance(
+        proven_get_up, tmp_path) -> None:
+    from drivers.clock import FakeClock
+    from drivers.mockbus import attached
+    from drivers.safety import ExpectedPositions
+    from drivers.servo_map import load_servo_map
+    from drivers.session import connect, mock_url_for
+    from robot_rise.sim.twin import MujocoTwin
+
+    robot, _, traj, predicted = proven_get_up
+    smap = load_servo_map(robot.directory / "servos.toml")
+    idx = smap.index_of(traj.joint_names)
+    q = np.asarray(traj.q)[:, idx]
+    # block the joint that moves most in the middle third of the motion, at its fastest there
+    speed = np.abs(np.diff(q, axis=0)) / np.diff(traj.t)[:, None]
+    middle = (traj.t[1:] > traj.duration_s / 3) & (traj.t[1:] < 2 * traj.duration_s / 3)
+    row, joint = np.unravel_index(int(np.argmax(np.where(middle[:, None], speed, 0.0))), speed.shape)
+    block_at = float(traj.t[row])
+    pidx = smap.index_of(predicted.joint_names)
+    expected = ExpectedPositions(predicted.t_s, predicted.q_rad[:, pidx], predicted.tolerance_rad[pidx])
+    twin = MujocoTwin(robot, "flat", start=traj.start)
+    clock = FakeClock()
+    url = mock_url_for(smap, initial_rad=traj.start.joints, clock=clock, plant=twin)
+    log = tmp_path / "run.csv"
+    with connect(smap, url) as conn:
+        preflight(conn.group)
+        engage(conn.group, watchdog_s=0.1)
+        emulator = attached(url.removeprefix("dxlsim://"))
+        assert emulator is not None
+        emulator.faults.at(clock.now() + block_at, lambda bus: bus.faults.block(smap.servos[joint].id))
+        limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+        rep = Executor(conn.group, limits, ExecutorConfig(expected=expected, log_path=log)).run(
+            traj.joint_names, traj.t, traj.q)
+    assert not rep.completed and [(f.kind, f.index) for f in rep.faults] == [(FaultKind.TRACKING, joint)]
+    beyond = _first_cycle_beyond(log, smap, expected, joint, 1 / RATE)
+    assert block_at * RATE <= beyond <= rep.stats.cycles - 1 <= beyond + 0.1 * RATE
+    assert rep.commands is not None and rep.clamped_cycles == 0
+    assert np.all(rep.commands >= smap.lower_rad) and np.all(rep.commands <= smap.upper_rad)

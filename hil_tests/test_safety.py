@@ -160,3 +160,49 @@ def test_that_the_limp_ramp_of_several_servos_starts_at_each_limit() -> None:
     ramp = limp_pwm_ramp(np.array([885, 400]), 0.5, 0.01)
     assert ramp.shape == (50, 2) and np.all(ramp[-1] == 0) and np.all(np.diff(ramp, axis=0) <= 0)
     assert abs(ramp[0, 0] - 885 * 49 / 50) <= 1 and abs(ramp[0, 1] - 400 * 49 / 50) <= 1
+
+
+def test_that_no_command_to_track_leaves_the_tracking_to_the_expected_positions() -> None:
+    lim = _limits(max_tracking_error_rad=0.2)
+    far = np.array([0.0, 0.9, 0.0])
+    assert [f.kind for f in evaluate_feedback(lim, **_feedback(q_present_rad=far))] == [FaultKind.TRACKING]
+    assert evaluate_feedback(lim, **_feedback(q_present_rad=far, q_command_rad=None)) == []
+    # every other check still runs
+    assert [f.kind for f in evaluate_feedback(lim, **_feedback(q_command_rad=None, temperature_c=np.array([80.0, 40, 40])))] \
+        == [FaultKind.TEMPERATURE]
+
+
+def test_that_a_deviation_from_the_expected_positions_faults_only_after_the_debounce() -> None:
+    from drivers.safety import evaluate_expected
+
+    expected = np.zeros(3)
+    tol = np.array([0.1, 0.1, 0.2])
+    count = np.zeros(3, np.int64)
+    valid = np.ones(3, bool)
+    beyond = np.array([0.0, 0.15, 0.15])  # joint 1 beyond its tolerance, joint 2 within its wider one
+    for cycle in range(1, 3):
+        count, faults = evaluate_expected(beyond, expected, tol, valid, count, 3)
+        assert faults == [] and count.tolist() == [0, cycle, 0]
+    count, faults = evaluate_expected(beyond, expected, tol, valid, count, 3)
+    assert [(f.kind, f.index) for f in faults] == [(FaultKind.TRACKING, 1)]
+    assert faults[0].value == pytest.approx(0.15) and faults[0].limit == 0.1
+    assert "from its expected position for 3 cycles (tolerance 0.100 rad)" in faults[0].message
+    # back within: the count restarts; not read: it is kept
+    count, _ = evaluate_expected(np.zeros(3), expected, tol, valid, np.array([2, 2, 2]), 3)
+    assert count.tolist() == [0, 0, 0]
+    count, _ = evaluate_expected(np.array([0.0, np.nan, 0.0]), expected, tol, np.array([True, False, True]),
+                                 np.array([0, 2, 0]), 3)
+    assert count.tolist() == [0, 2, 0]
+
+
+def test_that_malformed_expected_positions_are_refused() -> None:
+    from drivers.safety import ExpectedPositions
+
+    t = np.array([0.0, 0.5])
+    q = np.zeros((2, 3))
+    assert ExpectedPositions(t, q, np.full(3, 0.1)).debounce_cycles(0.01) == 3
+    assert ExpectedPositions(t, q, np.full(3, 0.1)).debounce_cycles(0.05) == 1  # at least one cycle
+    for bad in (dict(t_s=t[::-1]), dict(q_rad=np.zeros((3, 3))), dict(tolerance_rad=np.zeros(3)),
+                dict(tolerance_rad=np.full(2, 0.1)), dict(q_rad=np.full((2, 3), np.nan))):
+        with pytest.raises(SafetyError, match="expected positions"):
+            ExpectedPositions(**{"t_s": t, "q_rad": q, "tolerance_rad": np.full(3, 0.1), **bad})

@@ -5,12 +5,17 @@ File format (JSON), exactly::
     {"format": "robot-rise/posture@1", "robot": "op3", "root_pos": [x, y, z],
      "root_quat": [w, x, y, z], "joints": {"<joint>": radians, ...}}
 
+Joint limits: a posture read for a robot may lie up to ``LIMIT_CLAMP_TOLERANCE_RAD`` (two servo
+ticks) past a limit, as a servo resting on its stop reads; it is clamped into the limits with one
+warning line (:func:`admit_posture`). Further out is an error naming the joints.
+
 Also the posture distance of paper 000 section 4.1, eq. (1)-(3), vectorised.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from collections.abc import Mapping
@@ -33,18 +38,25 @@ __all__ = [
     "read_posture",
     "write_posture",
     "validate_posture",
+    "clamp_to_limits",
+    "admit_posture",
     "posture_from_qpos",
     "PostureDistance",
     "yaw_aligned_orientation_distance",
     "quat_multiply",
     "quat_conjugate",
     "yaw_rad",
-    "DEFAULT_LIMIT_TOLERANCE_RAD",
+    "LIMIT_CLAMP_TOLERANCE_RAD",
 ]
+
+log = logging.getLogger(__name__)
 
 POSTURE_FORMAT = "robot-rise/posture@1"
 QUAT_NORM_TOLERANCE = 1e-3  # |q| must be 1 within this to count as a unit quaternion
-DEFAULT_LIMIT_TOLERANCE_RAD = 1e-3  # joint angles may exceed limits by this much (rounding)
+# Joint angles may lie this far past a limit and are clamped into it [rad]: two ticks of a
+# 4096-tick-per-turn servo (Dynamixel XM430, 2 * 2 pi / 4096 = 3.07 mrad). A servo resting on its
+# stop reads up to one tick past it, and the angle's rounding may add another.
+LIMIT_CLAMP_TOLERANCE_RAD = 2 * 2 * math.pi / 4096
 YAW_MIN_HORIZONTAL = 1e-3  # yaw_rad: an x axis with less horizontal length than this points up or down [unit]
 
 
@@ -154,9 +166,12 @@ def posture_from_dict(
     robot: Robot | None = None,
     *,
     where: str = "posture",
-    limit_tolerance_rad: float = DEFAULT_LIMIT_TOLERANCE_RAD,
+    limit_tolerance_rad: float = LIMIT_CLAMP_TOLERANCE_RAD,
 ) -> Posture:
     """Parse a posture@1 object; with ``robot``, also check joints and limits against it.
+
+    With ``robot``, joint angles at most ``limit_tolerance_rad`` past a limit are clamped into it
+    (one warning line, :func:`admit_posture`).
 
     Raises:
         PostureError: naming the problem (format, field, joint, quaternion, limit).
@@ -181,11 +196,11 @@ def posture_from_dict(
     except PostureError as e:
         raise PostureError(f"{where}: {e}") from None
     if robot is not None:
-        validate_posture(p, robot, where=where, limit_tolerance_rad=limit_tolerance_rad)
+        p = admit_posture(p, robot, where=where, limit_tolerance_rad=limit_tolerance_rad)
     return p
 
 
-def validate_posture(p: Posture, robot: Robot, *, where: str = "posture", limit_tolerance_rad: float = DEFAULT_LIMIT_TOLERANCE_RAD) -> None:
+def validate_posture(p: Posture, robot: Robot, *, where: str = "posture", limit_tolerance_rad: float = LIMIT_CLAMP_TOLERANCE_RAD) -> None:
     """Check a posture against a robot: name, joint set, limits (with tolerance).
 
     Raises:
@@ -205,11 +220,65 @@ def validate_posture(p: Posture, robot: Robot, *, where: str = "posture", limit_
         details = ", ".join(
             f"{robot.joint_names[i]}={q[i]:.4f} not in [{robot.joint_lower[i]:.4f}, {robot.joint_upper[i]:.4f}]" for i in out
         )
-        raise PostureError(f"{where}: joint angles out of limits: {details}", hint=f"tolerance is {limit_tolerance_rad} rad")
+        raise PostureError(
+            f"{where}: joint angles out of limits: {details}",
+            hint=f"up to {limit_tolerance_rad * 1e3:.2f} mrad past a limit is accepted and clamped",
+        )
 
 
-def read_posture(path: str | os.PathLike[str], robot: Robot | None = None, *, limit_tolerance_rad: float = DEFAULT_LIMIT_TOLERANCE_RAD) -> Posture:
-    """Read and validate a posture file.
+def clamp_to_limits(
+    p: Posture, robot: Robot, *, where: str = "posture", limit_tolerance_rad: float = LIMIT_CLAMP_TOLERANCE_RAD
+) -> tuple[Posture, tuple[str, ...]]:
+    """The posture with joint angles slightly past a limit clamped into it (pure).
+
+    Args:
+        p: the posture (of ``robot``).
+        robot: its robot (names, joints, limits).
+        where: what the posture is, for the error message.
+        limit_tolerance_rad: how far past a limit an angle may lie and still be clamped [rad].
+
+    Returns:
+        (the clamped posture, the names of the joints clamped, in robot order); ``p`` itself and
+        ``()`` when every angle is within its limits.
+
+    Raises:
+        PostureError: as :func:`validate_posture`: another robot, unknown or missing joints, or an
+            angle further than ``limit_tolerance_rad`` past its limit.
+    """
+    validate_posture(p, robot, where=where, limit_tolerance_rad=limit_tolerance_rad)
+    q = p.joint_vector(robot.joint_names)
+    inside = np.clip(q, robot.joint_lower, robot.joint_upper)
+    moved = np.flatnonzero(inside != q)
+    if not moved.size:
+        return p, ()
+    names = tuple(robot.joint_names[i] for i in moved)
+    return p.with_joints({robot.joint_names[i]: float(inside[i]) for i in moved}), names
+
+
+def admit_posture(
+    p: Posture, robot: Robot, *, where: str = "posture", limit_tolerance_rad: float = LIMIT_CLAMP_TOLERANCE_RAD
+) -> Posture:
+    """:func:`clamp_to_limits`, with one warning line naming the joints clamped and by how much.
+
+    What the product does with every posture it is given (a posture file, a trajectory's start,
+    the start of ``rise``).
+
+    Raises:
+        PostureError: as :func:`validate_posture`.
+    """
+    inside, clamped = clamp_to_limits(p, robot, where=where, limit_tolerance_rad=limit_tolerance_rad)
+    if clamped:
+        log.warning(
+            "%s: clamped into the joint limits: %s",
+            where,
+            ", ".join(f"{j} by {abs(p.joints[j] - inside.joints[j]) * 1e3:.2f} mrad" for j in clamped),
+        )
+    return inside
+
+
+def read_posture(path: str | os.PathLike[str], robot: Robot | None = None, *, limit_tolerance_rad: float = LIMIT_CLAMP_TOLERANCE_RAD) -> Posture:
+    """Read and validate a posture file; with ``robot``, angles slightly past a limit are clamped
+    (:func:`posture_from_dict`).
 
     Raises:
         PostureError: the file is not valid JSON or not a valid posture (the message names why).

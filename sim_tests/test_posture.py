@@ -2,14 +2,18 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from robot_rise.cli._common import load_trajectory_for
 from robot_rise.errors import PostureError
 from robot_rise.posture import (
+    LIMIT_CLAMP_TOLERANCE_RAD,
     Posture,
     PostureDistance,
+    clamp_to_limits,
     posture_from_dict,
     posture_to_dict,
     quat_multiply,
@@ -57,12 +61,96 @@ def test_reading_a_bad_posture_names_the_problem(robot, mutate, message):
         posture_from_dict(obj, robot)
 
 
-def test_limit_tolerance_option_accepts_small_overshoot(robot):
+def test_limit_tolerance_option_clamps_a_larger_overshoot(robot):
     obj = posture_to_dict(_stand(robot))
-    obj["joints"]["l_knee"] = robot.joint_upper[robot.joint_index("l_knee")] + 0.005
+    upper = robot.joint_upper[robot.joint_index("l_knee")]
+    obj["joints"]["l_knee"] = upper + 0.005
     with pytest.raises(PostureError):
         posture_from_dict(obj, robot)
-    assert posture_from_dict(obj, robot, limit_tolerance_rad=0.01).joints["l_knee"] > robot.joint_upper[robot.joint_index("l_knee")]
+    assert posture_from_dict(obj, robot, limit_tolerance_rad=0.01).joints["l_knee"] == upper
+
+
+def test_the_clamp_tolerance_is_two_ticks_of_a_4096_tick_servo():
+    assert LIMIT_CLAMP_TOLERANCE_RAD == pytest.approx(2 * 2 * math.pi / 4096)
+    assert 3.0e-3 < LIMIT_CLAMP_TOLERANCE_RAD < 3.2e-3
+
+
+def _past_limit(robot, joint: str, past_rad: float, *, upper: bool) -> Posture:
+    """A lying posture (a library start) with one joint ``past_rad`` past its lower or upper limit."""
+    p = read_posture(_LYING, robot)
+    i = robot.joint_index(joint)
+    return p.with_joints({joint: robot.joint_upper[i] + past_rad if upper else robot.joint_lower[i] - past_rad})
+
+
+_LYING = Path(__file__).parent.parent / "configs" / "motions" / "op3" / "left_tip_forward.start.json"  # l_sho_roll rests on its lower stop
+
+
+@pytest.mark.parametrize("past_rad", [0.3e-3, 2.9e-3])
+@pytest.mark.parametrize("upper", [False, True])
+def test_a_posture_file_up_to_two_ticks_past_a_limit_is_clamped_with_one_warning(robot, tmp_path, caplog, past_rad, upper):
+    joint = "l_sho_roll" if not upper else "r_knee"
+    write_posture(tmp_path / "p.json", _past_limit(robot, joint, past_rad, upper=upper))
+    with caplog.at_level("WARNING", logger="robot_rise.posture"):
+        p = read_posture(tmp_path / "p.json", robot)
+    i = robot.joint_index(joint)
+    assert p.joints[joint] == (robot.joint_upper[i] if upper else robot.joint_lower[i])
+    warnings = [r for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1
+    assert joint in warnings[0].getMessage() and f"{past_rad * 1e3:.2f} mrad" in warnings[0].getMessage()
+    q = p.joint_vector(robot.joint_names)
+    assert np.all(q >= robot.joint_lower) and np.all(q <= robot.joint_upper)
+
+
+def test_a_posture_more_than_two_ticks_past_a_limit_is_refused_naming_the_joint(robot, tmp_path):
+    write_posture(tmp_path / "p.json", _past_limit(robot, "l_sho_roll", 3.2e-3, upper=False))
+    with pytest.raises(PostureError, match="out of limits: l_sho_roll=-1.3122 not in"):
+        read_posture(tmp_path / "p.json", robot)
+
+
+def test_clamp_to_limits_names_the_joints_clamped_and_leaves_a_posture_inside_alone(robot, caplog):
+    inside = read_posture(_LYING, robot)
+    assert clamp_to_limits(inside, robot) == (inside, ())
+    past = _past_limit(robot, "l_sho_roll", 1e-3, upper=False).with_joints({"r_knee": robot.joint_upper[robot.joint_index("r_knee")] + 2e-3})
+    with caplog.at_level("WARNING"):
+        clamped, names = clamp_to_limits(past, robot)
+    assert names == ("l_sho_roll", "r_knee") and not caplog.records  # pure: the warning is admit_posture's
+    assert clamped.joints["r_knee"] == robot.joint_upper[robot.joint_index("r_knee")]
+
+
+def test_the_validity_checker_refuses_a_posture_past_a_limit_until_it_is_clamped(robot):
+    from robot_rise.validity import ValidityChecker
+
+    checker = ValidityChecker(robot, "flat")
+    past = _past_limit(robot, "l_sho_roll", 0.3e-3, upper=False)
+    assert checker.check(past).reasons() == ["joint limit: l_sho_roll=-1.3093 not in [-1.3090, 1.7453] (0.30 mrad past)"]
+    assert checker.check(clamp_to_limits(past, robot)[0]).valid
+
+
+def test_a_settled_posture_a_fraction_of_a_tick_past_its_limit_rises(robot, tmp_path, caplog):
+    from robot_rise.rise import rise
+
+    write_posture(tmp_path / "p.json", _past_limit(robot, "l_sho_roll", 0.3e-3, upper=False))
+    with caplog.at_level("WARNING", logger="robot_rise.posture"):
+        start = read_posture(tmp_path / "p.json", robot)
+    assert len(caplog.records) == 1
+    assert rise(robot, start, seed=0).proven
+
+
+@pytest.mark.parametrize("past_rad, ok", [(0.3e-3, True), (2.9e-3, True), (3.2e-3, False)])
+def test_a_trajectory_whose_start_is_past_a_limit_loads_clamped_up_to_two_ticks(robot, tmp_path, caplog, past_rad, ok):
+    from robot_rise.trajectory import Trajectory, write_trajectory
+
+    start = _past_limit(robot, "l_sho_roll", past_rad, upper=False)
+    q0 = start.joint_vector(robot.joint_names)
+    write_trajectory(tmp_path / "t.json", Trajectory(robot.name, robot.joint_names, np.array([0.0, 1.0]), np.stack([q0, q0]), start))
+    if not ok:
+        with pytest.raises(PostureError, match="t.json: start: joint angles out of limits: l_sho_roll"):
+            load_trajectory_for(robot, str(tmp_path / "t.json"))
+        return
+    with caplog.at_level("WARNING", logger="robot_rise.posture"):
+        tr = load_trajectory_for(robot, str(tmp_path / "t.json"))
+    assert tr.start.joints["l_sho_roll"] == robot.joint_lower[robot.joint_index("l_sho_roll")]
+    assert len(caplog.records) == 1 and "t.json: start: clamped into the joint limits: l_sho_roll" in caplog.text
 
 
 def test_invalid_json_is_reported_with_the_file_name(tmp_path, robot):

@@ -14,7 +14,8 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
 - :mod:`~robot_rise.authoring.goal_lead` -- ``clamp_goal_lead`` for motions that keep their
   timing because they need their momentum.
 - :mod:`~robot_rise.authoring.robustness` -- the five players a motion must stand on.
-- :mod:`~robot_rise.authoring.write` -- ``author_library``: settle, time, verify, write.
+- :mod:`~robot_rise.authoring.write` -- ``author_library``: settle, time, verify, prove, write;
+  ``reprove_library`` proves the shipped motions again (nominal model and ensemble).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from robot_rise.authoring.lying import quat_lying, settle
 from robot_rise.authoring.op3_motions import MOTION_SPECS, mirror, mirror_keyframes, sym
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND, robustness_players
-from robot_rise.authoring.write import author_library
+from robot_rise.authoring.write import PROOF_SCENE, Reproof, author_library, reprove_library, with_proof
 
 __all__ = [
     "LEAD_CLAMP_TARGET",
@@ -38,6 +39,10 @@ __all__ = [
     "Keyframe",
     "MotionSpec",
     "author_library",
+    "PROOF_SCENE",
+    "Reproof",
+    "reprove_library",
+    "with_proof",
     "build_trajectory",
     "clamp_goal_lead",
     "mirror",

@@ -1,18 +1,28 @@
-"""Writing the library: each motion settled, timed, verified on the robustness grid, and only then written with its index row.
+"""Writing the library: each motion settled, timed, verified on the robustness grid, proven, and only then written with its index row.
 
 A motion is written only after it stands on all five players of
 :func:`robot_rise.authoring.robustness.robustness_players` within ``TORQUE_BOUND`` of the
-envelope and without self collision; its index row is added or replaced, so the index always
-names motions that pass. The file's ``report`` holds the judge's verdict, the peak torque ratio
-(nominal and over the corners), ZMP margin and keyframe times; the simulated root pose is written
-as ``root`` (needed by connecting-posture selection). Files are written atomically (a temporary
-file renamed over the old one), so an interrupted run never leaves a half-written motion.
+envelope and without self collision, and its proof (:func:`robot_rise.filter.check` on flat
+ground) says proven; its index row is added or replaced, so the index always names motions that
+pass. The file's ``report`` holds the judge's verdict, the peak torque ratio (nominal and over the
+corners), ZMP margin and keyframe times, and the proof's entries (``Proof.to_dict``: ``proven``,
+``robot``, ``robot_digest``, ``scene``, ...), so ``execute`` accepts the motion as written; the
+simulated root pose is written as ``root`` (needed by connecting-posture selection). The settled
+start posture is clamped into the joint limits (a body at rest on a joint stop reads slightly
+past it). Files are written atomically (a temporary file renamed over the old one), so an
+interrupted run never leaves a half-written motion.
+
+:func:`reprove_library` re-proves a library in place without re-authoring it (``robot-rise
+library prove``): after the robot files or the proof change, the motions keep their rows and get
+a fresh proof.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,23 +33,161 @@ from robot_rise.authoring.lying import settle
 from robot_rise.authoring.op3_motions import MOTION_SPECS
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import TORQUE_BOUND, robustness_players
-from robot_rise.library import LIBRARY_FORMAT
+from robot_rise.errors import FormatError, PostureError
+from robot_rise.fileio import write_text_atomic
+from robot_rise.filter import (
+    COMMAND_LIMITS_KEY,
+    PREDICTED_KEY,
+    EnsembleReplayer,
+    Proof,
+    command_limits_for,
+    conform,
+    predicted_positions,
+    prove,
+    with_ensemble,
+)
+from robot_rise.library import LIBRARY_FORMAT, load_library
 from robot_rise.model import Robot, load_robot
-from robot_rise.posture import write_posture
+from robot_rise.posture import LIMIT_CLAMP_TOLERANCE_RAD, clamp_to_limits, posture_from_dict, write_posture
 from robot_rise.sampling import classify_lying
 from robot_rise.sim.standing import judge
-from robot_rise.trajectory import Trajectory, write_trajectory
+from robot_rise.trajectory import Trajectory, trajectory_from_dict, trajectory_to_dict, write_trajectory
 
-__all__ = ["author_library"]
+__all__ = ["author_library", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
 
 log = logging.getLogger(__name__)
 
+PROOF_SCENE = "flat"  # library motions are authored on flat ground and proven there
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file renamed over it (readers never see half a file)."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+_PROOF_KEYS = frozenset(f.name for f in dataclasses.fields(Proof))  # a report's entries that belong to its proof
+
+
+def with_proof(robot: Robot, tr: Trajectory, *, scene: str = PROOF_SCENE) -> tuple[Trajectory, Proof]:
+    """Conform ``tr`` to the executor's command limits, replay it from its start on the nominal
+    model and every ensemble variant, and put the proof's entries into its report, with the
+    command limits it was proven under and the positions the executor should see.
+
+    The report's other entries (the author's verdict, keyframe times, ...) stay where they are;
+    proof entries of an older proof are replaced, and dropped when the new proof has none.
+
+    Returns:
+        (the trajectory, conformed, with the proof in its report; the proof).
+    """
+    limits = command_limits_for(robot)
+    tr = conform(tr, limits)  # what the executor streams unclamped is what is proven
+    rec, _, proof = prove(robot, tr, scene=scene)
+    replayed, recs = EnsembleReplayer(robot, scene).replay(tr)
+    proof = with_ensemble(proof, replayed)
+    entries = {**proof.to_dict(), COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
+    report = {k: v for k, v in tr.report.items() if k not in _PROOF_KEYS or k in entries}
+    report.update(entries)
+    return dataclasses.replace(tr, report=report), proof
+
+
+@dataclass(frozen=True)
+class Reproof:
+    """What :func:`reprove_library` did to one motion.
+
+    Attributes:
+        name: the motion.
+        proof: its fresh proof.
+        clamped: joints of its start posture clamped into their limits (rows past a limit are
+            clamped with them).
+        written: its files changed (False: they already held this proof and start).
+    """
+
+    name: str
+    proof: Proof
+    clamped: tuple[str, ...]
+    written: bool
+
+
+def reprove_library(directory: str | Path | None, robot: Robot, *, scene: str = PROOF_SCENE) -> list[Reproof]:
+    """Re-prove every motion of a library in place, without re-authoring it.
+
+    Per motion: the start posture (trajectory file and start file) and the rows up to
+    ``LIMIT_CLAMP_TOLERANCE_RAD`` past a joint limit are clamped into it; the trajectory is
+    replayed and its report's proof entries replaced (:func:`with_proof`); the files are
+    rewritten atomically in their own JSON layout, other rows and entries byte for byte, and only
+    when something changed. A motion that is not proven gets its failing proof written (the file
+    tells the truth; ``execute`` refuses it).
+
+    Args:
+        directory: the library directory (default: the robot's shipped library).
+        robot: the robot the motions are proven on.
+        scene: the scene they are proven in.
+
+    Returns:
+        one :class:`Reproof` per motion, in index order.
+
+    Raises:
+        FormatError: the library or a motion file is malformed, or a row lies further than the
+            tolerance past a limit.
+        PostureError: a start posture lies further than the tolerance past a limit.
+    """
+    lib = load_library(directory, robot_name=robot.name)
+    index_path = lib.directory / "index.json"
+    index_text = index_path.read_text()
+    index = json.loads(index_text)
+    rows = index["motions"]
+    out = []
+    for row in rows:
+        traj_path, start_path = lib.directory / str(row["trajectory"]), lib.directory / str(row["start"])
+        text, start_text = traj_path.read_text(), start_path.read_text()
+        obj, start_obj = json.loads(text), json.loads(start_text)
+        clamped = _clamp_posture_object(obj["start"], robot, where=f"{traj_path}: start")
+        clamped += tuple(j for j in _clamp_posture_object(start_obj, robot, where=str(start_path)) if j not in clamped)
+        _clamp_rows(obj, trajectory_from_dict(obj, where=str(traj_path)), robot, where=str(traj_path))
+        before = trajectory_from_dict(obj, where=str(traj_path))
+        proven, proof = with_proof(robot, before, scene=scene)
+        written = trajectory_to_dict(proven)
+        obj["report"] = written["report"]
+        if proven.t is not before.t:  # conformed: slower segments, same rows; the phase ends where its row went
+            obj["t"] = written["t"]
+            row["connect_until_s"] = round(float(np.interp(float(row["connect_until_s"]), before.t, proven.t)), 6)
+            if "duration_s" in row:
+                row["duration_s"] = round(proven.duration_s, 6)
+        new_text, new_start_text = json.dumps(obj) + "\n", json.dumps(start_obj, indent=1) + "\n"
+        if new_start_text != start_text:
+            write_text_atomic(start_path, new_start_text)
+        if new_text != text:
+            write_text_atomic(traj_path, new_text)
+        log.info("%s: %s%s", row["name"], "proven" if proof.proven else "NOT proven: " + "; ".join(proof.problems),
+                 f", start clamped at {', '.join(clamped)}" if clamped else "")
+        out.append(Reproof(str(row["name"]), proof, clamped, new_text != text or new_start_text != start_text))
+    new_index_text = json.dumps(index, indent=1) + "\n"
+    if new_index_text != index_text:
+        write_text_atomic(index_path, new_index_text)
+    return out
+
+
+def _clamp_posture_object(obj: dict, robot: Robot, *, where: str) -> tuple[str, ...]:
+    """Clamp a posture@1 JSON object's joints into the limits in place; returns the joints clamped.
+
+    Raises:
+        PostureError: a joint lies further than ``LIMIT_CLAMP_TOLERANCE_RAD`` past its limit.
+    """
+    inside, clamped = clamp_to_limits(posture_from_dict(obj, where=where), robot, where=where)
+    for j in clamped:
+        obj["joints"][j] = inside.joints[j]
+    return clamped
+
+
+def _clamp_rows(obj: dict, tr: Trajectory, robot: Robot, *, where: str) -> None:
+    """Clamp a trajectory file's rows into the joint limits, editing ``obj`` (its JSON object) in place.
+
+    Raises:
+        FormatError: a row lies further than ``LIMIT_CLAMP_TOLERANCE_RAD`` past a limit.
+    """
+    cols = [robot.joint_index(j) for j in tr.joint_names]
+    inside = np.clip(tr.q, robot.joint_lower[cols], robot.joint_upper[cols])
+    excess = np.abs(inside - tr.q)
+    if excess.max(initial=0.0) > LIMIT_CLAMP_TOLERANCE_RAD:
+        r, c = np.unravel_index(int(np.argmax(excess)), excess.shape)
+        raise FormatError(f"{where}: row {r} (t = {tr.t[r]:.3f} s): {tr.joint_names[c]} lies {excess[r, c] * 1e3:.2f} mrad past its limit",
+                          hint=f"up to {LIMIT_CLAMP_TOLERANCE_RAD * 1e3:.2f} mrad is clamped; re-author the motion")
+    for r, c in zip(*np.nonzero(excess)):
+        obj["q"][r][c] = float(inside[r, c])
 
 
 def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str] | None = None) -> list[dict]:
@@ -75,7 +223,11 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
     for spec in MOTION_SPECS:
         if names and spec.name not in names:
             continue
-        start = settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad)
+        try:
+            start = clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
+        except PostureError as e:
+            log.error("%s: not written: %s", spec.name, e)
+            continue
         kind = classify_lying(start.root_quat_wxyz)
         if kind != spec.lying:
             log.error("%s: start posture settled %s, not %s: not written", spec.name, kind, spec.lying)
@@ -114,7 +266,11 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
             "keyframe_times_s": [k.t_s for k in kfs],
             "robot_digest": robot.digest(),
         }
-        tr = Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)
+        as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
+        tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
+        if not proof.proven:
+            log.error("%s (%.2f s) is not proven, not written: %s", spec.name, tr.duration_s, "; ".join(proof.problems))
+            continue
         tmp_dir = out_dir / ".authoring"
         tmp_dir.mkdir(exist_ok=True)
         write_trajectory(tmp_dir / f"{spec.name}.json", tr)
@@ -137,9 +293,9 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
         order = [s.name for s in MOTION_SPECS]
         keep = [n for n in order if n in old_rows] + [n for n in old_rows if n not in order]
         index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in keep]}
-        _write_atomic(index_path, json.dumps(index, indent=1) + "\n")
+        write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     if names is None:  # a full rebuild drops rows of motions no longer authored (failed ones keep their last passing files)
         order = [s.name for s in MOTION_SPECS]
         index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in order if n in old_rows]}
-        _write_atomic(index_path, json.dumps(index, indent=1) + "\n")
+        write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     return entries

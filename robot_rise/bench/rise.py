@@ -87,6 +87,10 @@ class RiseCase:
     motion: str
     reason: str
     robust: dict[str, bool]
+    variants: int = 0  # random model variants replayed (bench.margins)
+    variants_standing: int = 0
+    noise_trials: int = 0  # replays with 1e-6 rad target noise
+    noise_flips: int = 0  # ... whose verdict differed
 
 
 _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
@@ -99,7 +103,7 @@ def _rise_case(args: tuple) -> RiseCase:
     from robot_rise.model import load_robot
     from robot_rise.rise import rise
 
-    robot_dir, name, kind, posture, scene, budget_s, seed, robustness = args
+    robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials = args
     key = (robot_dir, scene)
     if key not in _CONTEXTS:  # one per worker process: the robot, checker, library and tree
         from robot_rise.rise import RiseContext
@@ -119,9 +123,16 @@ def _rise_case(args: tuple) -> RiseCase:
     if result.proven and robustness and result.trajectory is not None:
         for variant in BENCH_MODEL_VARIANTS:
             robust[variant.label] = stands_under(robot, result.trajectory, variant, scene=scene)
+    margins = None
+    if result.proven and result.trajectory is not None and (variants or noise_trials):
+        from robot_rise.bench.margins import margins_of
+
+        margins = margins_of(robot, result.trajectory, scene=scene, variants=variants, seed=seed, noise_trials=noise_trials)
     return RiseCase(
         name, kind, result.proven, wall, proof.duration_s if proof else float("nan"), proof.peak_torque_ratio if proof else float("nan"),
         str(rep.get("motion", "")), result.reason, robust,
+        margins.variants if margins else 0, margins.variants_standing if margins else 0,
+        margins.noise_trials if margins else 0, margins.noise_flips if margins else 0,
     )
 
 
@@ -134,6 +145,8 @@ def bench_rise(
     budget_s: float = 30.0,
     jobs: int = 1,
     robustness: bool = True,
+    variants: int = 0,
+    noise_trials: int = 0,
     progress=None,
 ) -> list[RiseCase]:
     """Rise from ``n_per_kind`` supine, prone and lateral (half left, half right) postures.
@@ -151,7 +164,7 @@ def bench_rise(
             continue
         sample = sample_lying(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
         for i, p in enumerate(sample.postures):
-            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness))
+            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness, variants, noise_trials))
     results: list[RiseCase] = []
     if jobs <= 1:
         for k, task in enumerate(tasks):
@@ -193,6 +206,16 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             tested = [c for c in ok if label in c.robust]
             if tested:
                 row[f"robust: {label}"] = sum(c.robust[label] for c in tested) / len(tested)
+        measured = [c for c in ok if c.variants]
+        if measured:
+            shares = np.array([c.variants_standing / c.variants for c in measured])
+            row["variant_share_median"] = float(np.median(shares))
+            row["variant_share_min"] = float(shares.min())
+            row["variant_share_95_or_more"] = float(np.mean(shares >= 0.95))
+        noisy = [c for c in ok if c.noise_trials]
+        if noisy:
+            row["noise_flips"] = int(sum(c.noise_flips for c in noisy))
+            row["noise_trials"] = int(sum(c.noise_trials for c in noisy))
         out[key] = row
     return out
 

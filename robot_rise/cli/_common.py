@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -10,7 +11,7 @@ from typing import Any
 
 from robot_rise.errors import RobotRiseError
 from robot_rise.model import Robot, load_robot
-from robot_rise.posture import validate_posture
+from robot_rise.posture import admit_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
 
 __all__ = ["add_robot_args", "load_robot_arg", "load_trajectory_for", "Progress", "print_json", "Formatter"]
@@ -36,12 +37,17 @@ def load_robot_arg(args: argparse.Namespace) -> Robot:
 
 
 def load_trajectory_for(robot: Robot, path: str) -> Trajectory:
-    """Read a trajectory file and check it belongs to ``robot`` and starts in a valid posture."""
+    """Read a trajectory file and check it belongs to ``robot`` and starts in a valid posture.
+
+    A start up to two servo ticks past a joint limit is clamped into it, with one warning line
+    (:func:`robot_rise.posture.admit_posture`); the rows are left as written (the executor clamps
+    its targets).
+    """
     tr = read_trajectory(path)
     if tr.robot != robot.name:
         raise RobotRiseError(f"{path} is for robot {tr.robot!r}, not {robot.name!r}", hint="pass --robot DIR")
-    validate_posture(tr.start, robot, where=f"{path}: start")
-    return tr
+    start = admit_posture(tr.start, robot, where=f"{path}: start")
+    return tr if start is tr.start else dataclasses.replace(tr, start=start)
 
 
 class Progress:

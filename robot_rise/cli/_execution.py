@@ -3,6 +3,12 @@ emulator, or emulator moved by the physics twin) under the safety layer, printin
 
 This is the one place where the core (robot, trajectory, proof, twin) meets ``drivers`` (servo map,
 preflight, executor); the commands only parse their options and call :func:`execute_trajectory`.
+
+Executed = proven: a proof records the command limits it was proven under (report
+``command_limits``); a trajectory proven under other limits than the executor's (rate, speed
+limit, joint limits, or a ``--speed`` above 1) is refused. A proof's predicted positions (report
+``predicted``) become the executor's expected positions: tracking is watched against them, with
+the proof's per-joint tolerance, instead of against an absolute distance from the last command.
 """
 
 from __future__ import annotations
@@ -11,10 +17,22 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robot_rise.errors import RobotRiseError
+from robot_rise.filter.command_limits import (
+    DEFAULT_RATE_HZ,
+    CommandLimits,
+    command_limits_of,
+    match_command_limits,
+)
+from robot_rise.filter.prediction import expected_positions_of
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from drivers.safety import ExpectedPositions, SafetyLimits
+    from drivers.servo_map import ServoMap
 
 __all__ = ["ExecutionConfig", "execute_trajectory", "WATCHDOG_S"]
 
@@ -36,7 +54,7 @@ class ExecutionConfig:
     baud: int | None = None
     speed: float = 1.0
     approach: float | None = None
-    rate: float = 100.0
+    rate: float = DEFAULT_RATE_HZ
     stop: str = "hold"
     allow_unproven: bool = False
     yes: bool = False
@@ -82,6 +100,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
         print(f"proven on robot {robot.name}" + (f" in scene {scene}" if scene else ""))
     smap = load_servo_map(robot.directory / "servos.toml")
     limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+    expected = _proven_limits_and_expected(traj, smap, limits, config, proven=permit.allowed)
     lim = check_limits(np.asarray(traj.q)[:, smap.index_of(traj.joint_names)], limits)
     if not lim.ok:
         joint = smap.servos[lim.joint_index].joint
@@ -115,7 +134,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
                                      stop_policy=StopPolicy(config.stop),
                                      log_path=Path(config.log) if config.log else None,
                                      realtime_priority=config.rt_priority,
-                                     cpu_latency_us=None if config.cpu_idle else 0)
+                                     cpu_latency_us=None if config.cpu_idle else 0, expected=expected)
     with connect(smap, port, baud_rate=config.baud) as conn:
         pre = preflight(conn.group)
         print(f"preflight: {len(pre.found)}/{len(smap)} servos, {len(pre.changes)} setting(s) changed, "
@@ -149,6 +168,9 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
     if clock is None:
         print(f"timing: {rep.timing}")
     print(f"max tracking error {rep.max_tracking_error_rad:.4f} rad; safety-clamped cycles {rep.clamped_cycles}")
+    if rep.max_expected_error_rad is not None and rep.max_expected_ratio is not None:
+        print(f"largest distance from the proof's predicted positions {rep.max_expected_error_rad:.4f} rad "
+              f"({rep.max_expected_ratio:.2f} of its tolerance)")
     for f in rep.faults:
         joint = smap.servos[f.index].joint if 0 <= f.index < len(smap) else "bus"
         print(f"FAULT {f.kind.value} at {joint}: {f.message}")
@@ -166,3 +188,48 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
     if rep.interrupted:
         return 130
     return 0 if rep.completed else 1
+
+
+def _proven_limits_and_expected(traj: Trajectory, smap: ServoMap, limits: SafetyLimits, config: ExecutionConfig, *,
+                                proven: bool) -> ExpectedPositions | None:
+    """Refuse a trajectory proven under other command limits than these; return the proof's
+    predicted positions as the executor's expected positions (map order), or None.
+
+    A report without ``command_limits`` (a file from before they were recorded) runs as before,
+    with a warning line; so does a mismatch under ``--allow-unproven``. The predicted positions
+    are for the proven timing: at another ``--speed`` tracking is watched against the command.
+
+    Raises:
+        RobotRiseError: proven under other limits (one line and a hint), or a malformed entry.
+    """
+    from drivers.errors import DriverError
+    from drivers.safety import ExpectedPositions
+
+    proven_limits = command_limits_of(traj.report)
+    if proven_limits is None:
+        print("warning: the trajectory's report records no command limits (a file from before they were): "
+              "the safety layer may clamp its targets", file=sys.stderr)
+    else:
+        executing = CommandLimits(smap.joint_names, smap.lower_rad, smap.upper_rad, limits.max_velocity_rad_s,
+                                  config.rate)
+        match = match_command_limits(proven_limits, executing, speed=config.speed)
+        if not match.ok:
+            if not config.allow_unproven:
+                raise RobotRiseError(match.reason, hint=match.hint)
+            print(f"warning: {match.reason}; running anyway (--allow-unproven)", file=sys.stderr)
+    predicted = expected_positions_of(traj.report) if proven else None
+    if predicted is None:
+        return None
+    if config.speed != 1.0:
+        print(f"note: tracking watched against the command ({limits.max_tracking_error_rad} rad), not the proof's "
+              f"predicted positions: they are for --speed 1")
+        return None
+    try:
+        idx = smap.index_of(predicted.joint_names)
+    except DriverError as e:
+        raise RobotRiseError(f"the proof's predicted positions do not fit the servo map: {e}",
+                             hint="is it for this robot? (servos.toml)") from None
+    tol = predicted.tolerance_rad[idx]
+    print(f"tracking watched against the proof's predicted positions (tolerance {tol.min():.3f}.."
+          f"{tol.max():.3f} rad)")
+    return ExpectedPositions(predicted.t_s, predicted.q_rad[:, idx], tol)

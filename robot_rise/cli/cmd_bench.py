@@ -37,6 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--budget", type=float, default=30.0, help="planning budget per candidate [s]")
     r.add_argument("--jobs", type=int, default=1, help="worker processes (default: 1; wall times are per posture either way)")
     r.add_argument("--no-robustness", action="store_true", help="skip the replays under model errors")
+    r.add_argument("--variants", type=int, default=0, metavar="N",
+                   help="replay each proven output on N random model variants and report the share that stands")
+    r.add_argument("--noise-trials", type=int, default=0, metavar="K",
+                   help="re-prove each proven output K times with 1e-6 rad noise on its targets; count verdict flips")
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
@@ -81,7 +85,8 @@ def run_rise(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
     total = 3 * args.n_per_kind
     cases = bench_rise(robot, n_per_kind=args.n_per_kind, seed=args.seed, scene=args.scene, budget_s=args.budget,
-                       jobs=args.jobs, robustness=not args.no_robustness, progress=Progress("rising", total))
+                       jobs=args.jobs, robustness=not args.no_robustness, variants=args.variants,
+                       noise_trials=args.noise_trials, progress=Progress("rising", total))
     summary = summarize_rise(cases)
     if args.json:
         print_json({"summary": summary, "cases": [c.__dict__ for c in cases]})
@@ -91,6 +96,13 @@ def run_rise(args: argparse.Namespace) -> int:
     for kind, row in summary.items():
         print(f"| {kind} | {row['n']} | {100 * row['success']:.0f}% | {row['wall_median_s']:.1f} / {row['wall_p95_s']:.1f} | "
               f"{row['duration_median_s']:.2f} | {row['peak_torque_ratio_max']:.2f} |")
+    for kind, row in summary.items():
+        if "variant_share_median" in row:
+            print(f"{kind}: random variants standing per trajectory: median {100 * row['variant_share_median']:.0f} %, "
+                  f"min {100 * row['variant_share_min']:.0f} %; {100 * row['variant_share_95_or_more']:.0f} % of trajectories "
+                  f"stand in >= 95 % of them")
+        if "noise_trials" in row:
+            print(f"{kind}: {row['noise_flips']} verdict flips in {row['noise_trials']} replays with 1e-6 rad target noise")
     robust = {k: v for k, v in summary.get("all", {}).items() if k.startswith("robust: ")}
     for label, rate in robust.items():
         print(f"{label.removeprefix('robust: ')}: {100 * rate:.0f}% of proven trajectories still stand")

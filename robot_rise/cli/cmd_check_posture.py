@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
-from robot_rise.posture import DEFAULT_LIMIT_TOLERANCE_RAD, read_posture
+from robot_rise.posture import LIMIT_CLAMP_TOLERANCE_RAD, read_posture
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import ValidityChecker
+
+__all__ = ["register", "run"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,7 +21,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example:\n  robot-rise check-posture postures/supine_1_000.json --scene table",
     )
     p.add_argument("posture", metavar="FILE", help="posture file (robot-rise/posture@1)")
-    p.add_argument("--tolerance", type=float, default=DEFAULT_LIMIT_TOLERANCE_RAD, help="joint limit tolerance when reading [rad]")
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=LIMIT_CLAMP_TOLERANCE_RAD,
+        help=f"angles up to this far past a joint limit are clamped into it, further is an error [rad] "
+        f"(default: two servo ticks, {LIMIT_CLAMP_TOLERANCE_RAD:.5f})",
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     add_robot_args(p)
     p.set_defaults(func=run)

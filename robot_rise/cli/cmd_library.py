@@ -1,4 +1,4 @@
-"""``robot-rise library list|show|play NAME|bench|author``: inspect, replay, benchmark and author the motion library."""
+"""``robot-rise library list|show|play NAME|bench|author|prove``: inspect, replay, benchmark, author and re-prove the motion library."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ __all__ = ["register"]
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "library",
-        help="inspect, replay, benchmark and author the get-up motion library",
+        help="inspect, replay, benchmark, author and re-prove the get-up motion library",
         epilog="Example: robot-rise library play prone_knees_first --friction 0.5 --mass 1.1",
     )
     p.add_argument("--dir", type=Path, default=None, help="library directory (default: configs/motions/<robot>)")
@@ -53,6 +53,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="motions to rebuild (their index rows are replaced or added; others kept); default: all, dropping rows of motions no longer authored",
     )
     a.set_defaults(func=_author)
+    pr = sub.add_parser(
+        "prove",
+        help="re-prove every motion in place (fresh proofs in the files' reports; rows kept)",
+        description="Replay every motion of the library from its start posture, judge it, and write the proof into "
+        "the file's report (what execute checks before anything moves), without re-authoring it: after the robot "
+        "files or the proof changed. A start or row up to two servo ticks past a joint limit is clamped into it; "
+        "other rows and entries are kept byte for byte, files are written atomically and only when they change. "
+        "Exit code 0 if every motion is proven, 1 if not (its failing proof is written).",
+        epilog="Example: robot-rise library prove --dir /tmp/op3",
+    )
+    pr.add_argument("--dir", default=argparse.SUPPRESS, type=Path, help="library directory (as library --dir DIR)")
+    pr.set_defaults(func=_prove)
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -122,3 +134,16 @@ def _author(args: argparse.Namespace) -> int:
     for row in entries:
         print(f"{row['name']:24s} {row['duration_s']:6.2f}s  written to {out}")
     return EXIT_OK if entries else EXIT_FAILURE
+
+
+def _prove(args: argparse.Namespace) -> int:
+    from robot_rise.authoring.write import reprove_library
+    from robot_rise.model import load_robot
+
+    results = reprove_library(args.dir, load_robot(args.robot))
+    for r in results:
+        verdict = "PROVEN" if r.proof.proven else "NOT PROVEN: " + "; ".join(r.proof.problems)
+        clamped = f"; start clamped into the limits at {', '.join(r.clamped)}" if r.clamped else ""
+        print(f"{r.name:24s} {verdict} (peak torque {r.proof.peak_torque_ratio:.2f} of the envelope){clamped}; "
+              + ("written" if r.written else "unchanged"))
+    return EXIT_OK if all(r.proof.proven for r in results) else EXIT_FAILURE

@@ -12,6 +12,8 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``slope``: the flat-ground stance turned to sloped ground (paper 000 section 5.2).
 - ``lean``: the lean on arms and feet adapted to a retargeted body (paper 000 section 5.3).
 - ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
+- ``command_limits``: the limits the executor enforces, and targets conformed to them.
+- ``prediction``: the positions the executor should see (the proof's replay, the variants' spread).
 - ``ensemble``: the replay on every model variant (``robot_rise.sim.variants``), ``check``.
 - ``loop``: ``dynamics_filter``, iterating reshape and proof.
 - ``robustness``: one replay on a deliberately wrong model (``stands_under``).
@@ -19,12 +21,22 @@ controller and the filter reshapes the targets, never the physics. One concept p
 
 from __future__ import annotations
 
+from robot_rise.filter.command_limits import (
+    COMMAND_LIMITS_KEY,
+    CommandLimits,
+    LimitsMatch,
+    command_limits_for,
+    command_limits_of,
+    conform,
+    match_command_limits,
+)
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
 from robot_rise.filter.ensemble import EnsembleReplayer, EnsembleResult, check, replay_random_variants, with_ensemble
+from robot_rise.filter.prediction import PREDICTED_KEY, PredictedPositions, expected_positions_of, predicted_positions
 from robot_rise.filter.proof import Permit, Proof, VariantVerdict, execution_permit, prove, scene_digest
 from robot_rise.filter.robustness import stands_under
 from robot_rise.filter.slope import (
@@ -38,6 +50,17 @@ from robot_rise.filter.slope import (
 from robot_rise.filter.violations import Violation, find_violations
 
 __all__ = [
+    "COMMAND_LIMITS_KEY",
+    "CommandLimits",
+    "LimitsMatch",
+    "command_limits_for",
+    "command_limits_of",
+    "conform",
+    "match_command_limits",
+    "PREDICTED_KEY",
+    "PredictedPositions",
+    "expected_positions_of",
+    "predicted_positions",
     "FilterConfig",
     "Violation",
     "FilterIteration",

@@ -42,9 +42,11 @@ from typing import Any
 
 import numpy as np
 
+from robot_rise.filter.command_limits import COMMAND_LIMITS_KEY, CommandLimits, command_limits_for, conform
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.ensemble import EnsembleReplayer, with_ensemble
 from robot_rise.filter.join import time_scale
+from robot_rise.filter.prediction import PREDICTED_KEY, predicted_positions
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
 from robot_rise.filter.proof import Proof, prove_with_violations
 from robot_rise.filter.slope import SLOPE_MIN_RAD, ground_tilt_vector, turn_stance_to_slope
@@ -106,6 +108,7 @@ def dynamics_filter(
     protect_until_s: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
     ensemble: EnsembleReplayer | None = None,
+    command_limits: CommandLimits | None = None,
 ) -> FilterResult:
     """Reshape ``commanded`` until it stands the robot up within the servo limits on the nominal
     model and on every model variant, or say why not.
@@ -119,6 +122,8 @@ def dynamics_filter(
         protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
         progress: called as progress(iteration, max_iterations).
         ensemble: the variants' players to reuse (default: built here when ``config.ensemble``).
+        command_limits: what the executor will enforce (default: ``command_limits_for(robot)``):
+            the targets are kept within them, so executing the proven trajectory clamps nothing.
 
     Returns:
         FilterResult whose trajectory holds the final commanded targets and the proof report
@@ -128,8 +133,11 @@ def dynamics_filter(
     player = Player(robot, scene)
     if config.ensemble and ensemble is None:
         ensemble = EnsembleReplayer(robot, scene)
-    result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s, progress=progress)
+    limits = command_limits or command_limits_for(robot)
+    result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
+                             progress=progress, limits=limits)
     rounds = 0
+    recs: list[Recording] = []
     while ensemble is not None and result.proven:
         replayed, recs = ensemble.replay(result.trajectory, start=start, config=config)
         failures = replayed.failures()
@@ -152,11 +160,14 @@ def dynamics_filter(
             break
         log.info("ensemble round %d: %d variants fall; slowing %d windows", rounds, len(failures), len(windows))
         again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
-                                start=start, protect_until_s=protect_until_s, progress=progress)
+                                start=start, protect_until_s=protect_until_s, progress=progress, limits=limits)
         if not again.proven:
             break
-        result = again
-    return result
+        result, recs = again, []
+    # what the executor needs: the limits it was proven under, the positions to expect
+    executed = {COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs)}
+    return dataclasses.replace(result, report={**result.report, **executed},
+                               trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **executed}))
 
 
 def _nominal_filter(
@@ -169,8 +180,10 @@ def _nominal_filter(
     start: Posture,
     protect_until_s: float,
     progress: Callable[[int, int], None] | None,
+    limits: CommandLimits,
 ) -> FilterResult:
-    """The filter on the nominal model: reshape until proven there (the loop of the module docstring)."""
+    """The filter on the nominal model: reshape until proven there (the loop of the module docstring),
+    the targets always within the executor's ``limits``."""
     saturation = saturation_rad(robot)
     current = commanded
     history: list[FilterIteration] = []
@@ -189,6 +202,7 @@ def _nominal_filter(
     it = 0
     while it < config.max_iterations + lean_used:
         it += 1
+        current = conform(current, limits)
         rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config, player=player, start=start, saturation_rad=saturation)
         if slope_pending and not proof.proven:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in

@@ -1,0 +1,80 @@
+"""How far from falling a proven trajectory is: random model variants and target noise (issue 14).
+
+Two measures per trajectory, both on the proof standard (the nominal model within the envelope
+margin, every ensemble variant standing: ``robot_rise.filter.check``):
+
+- the share of ``n`` random model variants (``robot_rise.sim.variants.random_variants``, every
+  difference drawn at once from the ensemble's ranges, not the ensemble's own) that stand;
+- whether the verdict flips when every target gets uniform noise of +-``noise_rad`` (1e-6 rad:
+  the rounding of a trajectory file), over ``noise_trials`` seeded draws.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from robot_rise.filter import FilterConfig, check, replay_random_variants
+from robot_rise.model import Robot
+from robot_rise.trajectory import Trajectory
+
+__all__ = ["Margins", "NOISE_RAD", "margins_of"]
+
+NOISE_RAD = 1e-6  # target noise of the knife-edge test (issue 14: a file's rounding is 5e-7 rad) [rad]
+
+
+@dataclass(frozen=True)
+class Margins:
+    """What a trajectory withstood.
+
+    Attributes:
+        proven: its verdict on the proof standard, without noise.
+        variants: random variants replayed.
+        variants_standing: how many of them stood.
+        noise_trials: noisy replays of the proof standard.
+        noise_flips: how many gave another verdict than ``proven``.
+        failures: why variants fell (one line each, at most five).
+    """
+
+    proven: bool
+    variants: int
+    variants_standing: int
+    noise_trials: int
+    noise_flips: int
+    failures: tuple[str, ...]
+
+    @property
+    def variant_share(self) -> float:
+        return self.variants_standing / self.variants if self.variants else float("nan")
+
+
+def margins_of(
+    robot: Robot,
+    trajectory: Trajectory,
+    *,
+    scene: str | os.PathLike[str] | None = "flat",
+    variants: int = 50,
+    seed: int = 1,
+    noise_trials: int = 3,
+    noise_rad: float = NOISE_RAD,
+    config: FilterConfig = FilterConfig(),
+) -> Margins:
+    """Random-variant share and noise flips of ``trajectory`` (see the module docstring)."""
+    proven = check(robot, trajectory, scene=scene, config=config).proven
+    randoms = replay_random_variants(robot, trajectory, variants, seed, scene=scene, config=config) if variants else None
+    flips = 0
+    rng = np.random.default_rng(seed)
+    for _ in range(noise_trials):
+        noisy = dataclasses.replace(trajectory, q=trajectory.q + rng.uniform(-noise_rad, noise_rad, trajectory.q.shape))
+        flips += int(check(robot, noisy, scene=scene, config=config).proven != proven)
+    return Margins(
+        proven,
+        variants,
+        sum(v.standing for v in randoms.verdicts) if randoms else 0,
+        noise_trials,
+        flips,
+        tuple(randoms.failures()[:5]) if randoms else (),
+    )
