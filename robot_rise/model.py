@@ -14,6 +14,7 @@ import logging
 import os
 import tomllib
 from dataclasses import dataclass, field
+from xml.etree import ElementTree
 from functools import cached_property
 from pathlib import Path
 
@@ -30,6 +31,7 @@ __all__ = [
     "ServoAssignment",
     "ModelIndex",
     "load_robot",
+    "model_files",
     "compose",
     "model_index",
     "GROUND_PREFIX",
@@ -135,11 +137,67 @@ class Robot:
         return float(d.site(self.torso_site).xpos[2] - sole_z)
 
     def digest(self) -> str:
-        """SHA-256 over the robot's files (identifies the model a result was proven on)."""
+        """SHA-256 over every file of the robot (identifies the model a result was proven on).
+
+        robot.toml, the MJCF and servos.toml, then every file the MJCF loads (included XML,
+        meshes, skins, height fields, textures; ``model_files``), each by its path relative to the
+        robot directory and its bytes. A robot of the three files alone keeps the digest of those.
+        """
         h = hashlib.sha256()
-        for name in ("robot.toml", "robot.xml", "servos.toml"):
-            h.update((self.directory / name).read_bytes())
+        for path in (self.directory / "robot.toml", self.xml_path, self.directory / "servos.toml"):
+            h.update(path.read_bytes())
+        for path in model_files(self.xml_path):
+            h.update(os.path.relpath(path, self.directory).encode())
+            h.update(path.read_bytes())
         return h.hexdigest()
+
+
+def model_files(xml_path: str | os.PathLike[str]) -> tuple[Path, ...]:
+    """Every file an MJCF loads besides itself, sorted: included XML, meshes, skins, height fields, textures.
+
+    Paths resolve as MuJoCo resolves them: an ``<include>`` relative to the main file's directory
+    (else to the including file's), assets relative to the compiler's ``meshdir`` (meshes, skins,
+    height fields) or ``texturedir`` (textures), themselves relative to the main file's directory.
+
+    Raises:
+        ConfigError: the MJCF cannot be read, or a file it loads is missing.
+    """
+    main = Path(xml_path).resolve()
+    files: set[Path] = set()
+    pending = [main]
+    while pending:  # <include> elements, recursively (MjSpec inlines them without a trace)
+        current = pending.pop()
+        try:
+            tree = ElementTree.parse(current)
+        except (OSError, ElementTree.ParseError) as e:
+            raise ConfigError(f"{current}: cannot read MJCF: {e}") from e
+        for el in tree.iter("include"):
+            name = el.get("file", "")
+            path = next((p for p in (main.parent / name, current.parent / name) if p.is_file()), main.parent / name)
+            if path not in files:
+                files.add(path)
+                pending.append(path)
+    try:
+        spec = mujoco.MjSpec.from_file(str(main))
+    except Exception as e:  # mujoco raises ValueError with the parser message
+        raise ConfigError(f"{main}: cannot load MJCF: {e}") from e
+
+    def asset(directory: str, name: str) -> Path:
+        if spec.strippath:
+            name = Path(name).name
+        return (main.parent / directory / name).resolve()
+
+    for element in (*spec.meshes, *spec.skins, *spec.hfields):
+        if element.file:
+            files.add(asset(spec.meshdir, element.file))
+    for texture in spec.textures:
+        for name in (texture.file, *texture.cubefiles):
+            if name:
+                files.add(asset(spec.texturedir, name))
+    missing = sorted(str(p) for p in files if not p.is_file())
+    if missing:
+        raise ConfigError(f"{main}: loads files that do not exist: {', '.join(missing)}")
+    return tuple(sorted(files))
 
 
 def _read_toml(path: Path, fmt: str) -> dict:
@@ -379,6 +437,11 @@ def compose(
             for el in elements:
                 if el.name.startswith(_ATTACH_PREFIX):
                     el.name = el.name[len(_ATTACH_PREFIX) :]
+        # the robot's own collision filters name the renamed bodies and geoms
+        for el, fields in [(e, ("bodyname1", "bodyname2")) for e in spec.excludes] + [(p, ("geomname1", "geomname2")) for p in spec.pairs]:
+            for f in fields:
+                if getattr(el, f).startswith(_ATTACH_PREFIX):
+                    setattr(el, f, getattr(el, f)[len(_ATTACH_PREFIX) :])
     if with_actuators:
         for s, servo in zip(robot.servos, robot.servo_datasheets()):
             j = spec.joint(s.joint)

@@ -2,8 +2,14 @@
 
 One question, one owner (OMPL's StateValidityChecker): the checker answers "is this posture
 legal?" and "how far from the nearest contact is it?", nothing about paths. Collision geometry
-is the robot's capsules/boxes (paper 000 section 4.2.2, sphere-swept volumes) and the scene's
-world geoms; MuJoCo's collision pipeline computes signed distances.
+is the robot's geoms as the model defines them (the OP3's capsules/boxes, paper 000 section
+4.2.2, sphere-swept volumes; a mesh is its convex hull, as MuJoCo collides it) and the scene's
+world geoms; MuJoCo's collision pipeline computes signed distances and decides which pairs can
+collide (contype/conaffinity, ``<contact><exclude>``, parent bodies: ``robot_rise.geometry``).
+
+Joint limits are strict (float rounding aside): a posture slightly past a limit, as a servo
+resting on its stop reads, is clamped where it enters the product (``posture.admit_posture``:
+posture files, trajectory starts, the start of ``rise``), never here.
 
 Touching is legal: a contact counts as a collision only when the surfaces interpenetrate by
 more than ``contact_tolerance_m`` (a lying robot touches the ground everywhere it rests).
@@ -20,6 +26,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from robot_rise.geometry import collision_mask, colliding_geoms, lowest_point_z, mesh_hulls
 from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
 
@@ -27,6 +34,7 @@ __all__ = ["Looseness", "STRICT", "Collision", "ValidityReport", "ValidityChecke
 
 DEFAULT_CONTACT_TOLERANCE_M = 0.002  # interpenetration allowed as "touching" (MuJoCo soft contact)
 DEFAULT_CLEARANCE_MARGIN_M = 0.05  # distances are measured up to this; beyond, clearance reads as this
+JOINT_LIMIT_ROUNDING_RAD = 1e-6  # past a joint limit still inside it: float rounding only (inputs are clamped on entry) [rad]
 MIN_OBSTACLE_SIZE_M = 1e-4  # an obstacle shrunk "to zero" keeps this size (MuJoCo needs > 0)
 
 CollisionKind = str  # "ground" | "self" | "obstacle"
@@ -111,7 +119,7 @@ class ValidityChecker:
         looseness: Looseness = STRICT,
         contact_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M,
         clearance_margin_m: float = DEFAULT_CLEARANCE_MARGIN_M,
-        joint_limit_tolerance_rad: float = 1e-6,
+        joint_limit_tolerance_rad: float = JOINT_LIMIT_ROUNDING_RAD,
         _base: mujoco.MjModel | None = None,
     ) -> None:
         self.robot = robot
@@ -127,6 +135,10 @@ class ValidityChecker:
         self._data = mujoco.MjData(self.model)
         self._probe_model = _loosened_copy(base, robot, looseness)
         self._probe_model.geom_margin[:] = self.clearance_margin_m
+        # The midphase's bounding boxes of a body with several geoms (the world's obstacles, a
+        # robot link of many geoms) were sized at compile time without this margin: it would drop
+        # pairs within the margin but not touching, and their clearance would read as the cap.
+        self._probe_model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_MIDPHASE)
         self._probe_data = mujoco.MjData(self._probe_model)
         self._lower = robot.joint_lower - self.joint_limit_tolerance_rad
         self._upper = robot.joint_upper + self.joint_limit_tolerance_rad
@@ -138,6 +150,11 @@ class ValidityChecker:
         self._half = (self._upper - self._lower) / 2
         self._geom_kind = self.index.geom_kind  # 0 robot, 1 ground, 2 obstacle
         self._geom_names = [self.model.geom(g).name or f"geom{g}" for g in range(self.model.ngeom)]
+        # what the robot rests on the ground with: geoms that can touch the ground (any geom if no ground)
+        mask = collision_mask(self.model)
+        ground = self.index.ground_geoms if len(self.index.ground_geoms) else None
+        self._resting_geoms = colliding_geoms(mask, self.index.robot_geoms, ground)
+        self._hulls = mesh_hulls(self.model, self._resting_geoms)
 
     # --- construction helpers -----------------------------------------------------------------
 
@@ -198,10 +215,10 @@ class ValidityChecker:
         qpos = np.asarray(qpos, dtype=float)
         qj = qpos[self._qj]
         viol = []
+        lo, hi = self.robot.joint_lower, self.robot.joint_upper
         for i in np.flatnonzero((qj < self._lower) | (qj > self._upper)):
-            viol.append(
-                f"{self.robot.joint_names[i]}={qj[i]:.4f} not in [{self.robot.joint_lower[i]:.4f}, {self.robot.joint_upper[i]:.4f}]"
-            )
+            past_mrad = 1e3 * max(lo[i] - qj[i], qj[i] - hi[i])
+            viol.append(f"{self.robot.joint_names[i]}={qj[i]:.4f} not in [{lo[i]:.4f}, {hi[i]:.4f}] ({past_mrad:.2f} mrad past)")
         m, d = self._probe_model, self._probe_data
         d.qpos[:] = qpos
         mujoco.mj_kinematics(m, d)
@@ -235,8 +252,11 @@ class ValidityChecker:
         return self.check_qpos(self.qpos_of(posture))
 
     def lowest_point_z(self, qpos: np.ndarray) -> float:
-        """Lowest z of the robot's collision geometry in this posture [m] (via a far-below plane)."""
-        return float(_lowest_geom_z(self.model, self._data, self.index, qpos))
+        """Lowest z of the robot's collision geometry in this posture [m]: exact, meshes by their hulls."""
+        d = self._data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, d)
+        return lowest_point_z(self.model, d, self._resting_geoms, self._hulls)
 
 
 def _loosened_copy(base: mujoco.MjModel, robot: Robot, looseness: Looseness) -> mujoco.MjModel:
@@ -268,25 +288,3 @@ def _copy_model(m: mujoco.MjModel) -> mujoco.MjModel:
     import copy
 
     return copy.copy(m)
-
-
-def _lowest_geom_z(m: mujoco.MjModel, d: mujoco.MjData, idx: ModelIndex, qpos: np.ndarray) -> float:
-    """Lowest z over the robot's geoms: exact for spheres, capsules and boxes."""
-    d.qpos[:] = qpos
-    mujoco.mj_kinematics(m, d)
-    low = np.inf
-    for g in idx.robot_geoms:
-        t = m.geom_type[g]
-        pos = d.geom_xpos[g]
-        mat = d.geom_xmat[g].reshape(3, 3)
-        size = m.geom_size[g]
-        if t == mujoco.mjtGeom.mjGEOM_SPHERE:
-            z = pos[2] - size[0]
-        elif t == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            z = pos[2] - abs(mat[2, 2]) * size[1] - size[0]
-        elif t == mujoco.mjtGeom.mjGEOM_BOX:
-            z = pos[2] - float(np.abs(mat[2, :]) @ size[:3])
-        else:  # conservative bounding sphere for other types
-            z = pos[2] - m.geom_rbound[g]
-        low = min(low, z)
-    return float(low)

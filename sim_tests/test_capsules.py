@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from types import SimpleNamespace
+
 import mujoco
 import numpy as np
 import pytest
 from scipy.optimize import minimize
+from scipy.spatial import ConvexHull
 
+from robot_rise.geometry import hull_vertices
 from robot_rise.model import compose, load_robot, model_index
 from robot_rise.planning.energy import capsules
 from robot_rise.planning.energy.capsules import (
@@ -169,3 +174,161 @@ def test_that_table_obstacles_become_static_capsules():
     caps = world_capsules(m, idx)
     assert set(caps.names) >= {"table_top", "table_leg_1"}
     assert np.all(caps.body == 0)
+
+
+# --- meshes: capsules enclosing MuJoCo's convex hull --------------------------------------------
+
+
+def _hulls() -> dict[str, np.ndarray]:
+    """Convex point sets of the shapes robot brackets have: a box, a rod, a plate, a blob."""
+    rng = np.random.default_rng(7)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    blob = rng.normal(size=(300, 3)) * [0.03, 0.02, 0.015]
+    return {
+        "box": corners * [0.07, 0.05, 0.09],
+        "rod": corners * [0.01, 0.012, 0.06],
+        "plate": corners * [0.045, 0.035, 0.003],
+        "blob": blob[ConvexHull(blob).vertices],
+    }
+
+
+def _outside_m(points: np.ndarray, fit: capsules.HullFit) -> np.ndarray:
+    """How far each point lies outside every capsule of a fit [m] (<= 0: inside one), shape (n,)."""
+    ab = fit.b - fit.a
+    length2 = np.einsum("kj,kj->k", ab, ab)
+    s = np.einsum("nkj,kj->nk", points[:, None, :] - fit.a[None], ab) / np.where(length2 > 0, length2, 1.0)
+    nearest = fit.a[None] + np.clip(s, 0.0, 1.0)[..., None] * ab[None]
+    return (np.linalg.norm(points[:, None, :] - nearest, axis=2) - fit.radius[None]).min(axis=1)
+
+
+@pytest.mark.parametrize("shape", ["box", "rod", "plate", "blob"])
+def test_that_hull_capsules_contain_every_hull_vertex(shape):
+    hull = _hulls()[shape]
+    fit = capsules.fit_hull_capsules(hull)
+    assert 1 <= len(fit) <= capsules.MAX_CAPSULES_PER_MESH
+    assert _outside_m(hull, fit).max() <= 1e-12
+
+
+@pytest.mark.parametrize("shape", ["box", "rod", "plate", "blob"])
+def test_that_the_reported_fit_error_is_how_far_the_capsules_reach_beyond_the_hull(shape):
+    hull = _hulls()[shape]
+    fit = capsules.fit_hull_capsules(hull)
+    n = np.random.default_rng(11).normal(size=(200_000, 3))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    # for convex sets, max over the capsule of the distance to the hull = max_n h_capsule(n) - h_hull(n)
+    beyond = (np.maximum(n @ fit.a.T, n @ fit.b.T) + fit.radius - (n @ hull.T).max(axis=1)[:, None]).max()
+    assert beyond <= fit.error_m + 1e-5
+    assert beyond >= fit.error_m - 5e-4
+
+
+def test_that_a_capsule_shaped_hull_is_fitted_by_one_tight_capsule():
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(4000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    surface = 0.02 * u + np.where(u[:, 2:] > 0, 1.0, -1.0) * [0.0, 0.0, 0.04]  # radius 20 mm, segment 80 mm
+    hull = surface[ConvexHull(surface).vertices]
+    fit = capsules.fit_hull_capsules(hull)
+    assert len(fit) == 1 and fit.error_m < 0.001
+    assert fit.radius[0] == pytest.approx(0.02, abs=0.001)
+
+
+def test_that_more_capsules_reach_less_far_beyond_a_box():
+    hull = _hulls()["box"]
+    one = capsules.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=1)
+    eight = capsules.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=8)
+    assert len(one) == 1 and 1 < len(eight) <= 8
+    assert eight.error_m < 0.8 * one.error_m
+    with pytest.raises(ValueError, match="max_capsules"):
+        capsules.fit_hull_capsules(hull, max_capsules=0)
+
+
+FILTERED = """
+<mujoco>
+  <compiler angle="radian"/>
+  <asset><mesh name="block" vertex="-1 -1 -1  1 -1 -1  -1 1 -1  1 1 -1  -1 -1 1  1 -1 1  -1 1 1  1 1 1" scale="0.02 0.03 0.06"/></asset>
+  <worldbody>
+    <geom name="ground" type="plane" size="2 2 0.1"/>
+    <body name="trunk" pos="0 0 0.5"><freejoint/>
+      <geom name="trunk" type="mesh" mesh="block" euler="0.2 0.1 0.3"/>
+      <geom name="shell" type="sphere" size="0.2" contype="0" conaffinity="0"/>
+      <body name="left" pos="0 0.1 -0.1"><joint name="left" axis="1 0 0"/>
+        <geom name="left" type="capsule" size="0.02 0.05"/>
+        <body name="left_foot" pos="0 0 -0.1"><joint name="left_foot" axis="0 1 0"/><geom name="left_foot" type="mesh" mesh="block"/></body>
+      </body>
+      <body name="right" pos="0 -0.1 -0.1"><joint name="right" axis="1 0 0"/>
+        <geom name="right" type="capsule" size="0.02 0.05"/>
+        <body name="right_foot" pos="0 0 -0.1"><joint name="right_foot" axis="0 1 0"/><geom name="right_foot" type="mesh" mesh="block"/></body>
+      </body>
+    </body>
+  </worldbody>
+  <contact><exclude body1="left_foot" body2="right_foot"/></contact>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def filtered():
+    m = mujoco.MjModel.from_xml_string(FILTERED)
+    robot = SimpleNamespace(root_body="trunk", joint_names=("left", "left_foot", "right", "right_foot"))
+    return m, model_index(m, robot)
+
+
+def test_that_mesh_geoms_become_capsules_that_contain_their_hull_in_the_world(filtered):
+    m, idx = filtered
+    caps = robot_capsules(m, idx)
+    d = mujoco.MjData(m)
+    d.qpos[:] = [0.1, 0.2, 0.4, 0.9, 0.1, 0.3, 0.2, 0.5, -0.4, -0.3, 0.6]
+    mujoco.mj_kinematics(m, d)
+    a, b = caps.world_endpoints(d)
+    for name in ("trunk", "left_foot", "right_foot"):
+        g = m.geom(name).id
+        k = caps.geom == g
+        assert k.sum() >= 1
+        world = d.geom_xpos[g] + hull_vertices(m, g) @ d.geom_xmat[g].reshape(3, 3).T
+        fit = capsules.HullFit(a[k], b[k], caps.radius[k], 0.0)
+        assert _outside_m(world, fit).max() <= 1e-9
+
+
+def test_that_visual_geoms_are_no_capsules_and_model_filtered_links_are_no_pair(filtered):
+    m, idx = filtered
+    caps = robot_capsules(m, idx)
+    assert "shell" not in caps.names  # contype = conaffinity = 0: it collides with nothing
+    i, j = non_adjacent_pairs(m, caps)
+    pairs = {frozenset((caps.names[a], caps.names[b])) for a, b in zip(i, j)}
+    assert frozenset(("left_foot", "right_foot")) not in pairs  # <contact><exclude>
+    assert frozenset(("left", "right_foot")) in pairs
+    assert frozenset(("trunk", "left_foot")) in pairs
+
+
+def test_that_each_mesh_fit_is_reported_with_its_error(filtered):
+    m, idx = filtered
+    fits = capsules.mesh_fits(m, idx.robot_geoms)
+    assert [f.name for f in fits] == ["trunk", "left_foot", "right_foot"]
+    for f in fits:
+        assert f.capsules >= 1 and f.error_m >= 0.0 and f.within_bound == (f.error_m <= capsules.MESH_CAPSULE_MAX_ERROR_M)
+        assert f.name in f.describe() and "mm beyond the hull" in f.describe()
+
+
+BEZ1 = Path(__file__).resolve().parents[2] / "shared" / "robots" / "bez1" / "bez1.xml"
+
+
+@pytest.mark.skipif(not BEZ1.is_file(), reason="../shared/robots/bez1 is not there")
+def test_that_bez1s_capsules_overlap_at_its_zero_pose_only_where_its_hulls_are_within_the_fit_error():
+    m = mujoco.MjModel.from_xml_string(BEZ1.read_text().replace('meshdir="meshes/bez1/"', f'meshdir="{BEZ1.parent / "meshes" / "bez1"}/"'))
+    hinges = tuple(m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE)
+    idx = model_index(m, SimpleNamespace(root_body="torso_2023", joint_names=hinges))
+    caps = robot_capsules(m, idx)
+    fits = {f.geom: f for f in capsules.mesh_fits(m, idx.robot_geoms)}
+    assert len(fits) == 19 and max(f.error_m for f in fits.values()) < 0.035
+    i, j = non_adjacent_pairs(m, caps)
+    bodies = {frozenset((m.body(int(caps.body[p])).name, m.body(int(caps.body[q])).name)) for p, q in zip(i, j)}
+    assert frozenset(("left_hip_yaw", "left_hip_pitch")) not in bodies  # bez1.xml excludes it
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    a, b = caps.world_endpoints(d)
+    gap = segment_distance(a[i], b[i], a[j], b[j]) - caps.radius[i] - caps.radius[j]
+    fromto = np.zeros(6)
+    for p, q in zip(i[gap < 0], j[gap < 0]):
+        g1, g2 = int(caps.geom[p]), int(caps.geom[q])
+        hull_gap = mujoco.mj_geomDistance(m, d, g1, g2, 1.0, fromto)
+        assert hull_gap < fits[g1].error_m + fits[g2].error_m

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import hashlib
 import shutil
 from pathlib import Path
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from robot_rise.errors import ConfigError
-from robot_rise.model import compose, load_robot, model_index
+from robot_rise.model import compose, load_robot, model_files, model_index
 from robot_rise.servo import servo_datasheet
 
 
@@ -88,3 +89,61 @@ def test_a_servo_map_naming_an_unknown_joint_is_rejected_with_the_joint_name(tmp
 def test_a_missing_robot_directory_is_a_config_error(tmp_path: Path):
     with pytest.raises(ConfigError, match="does not exist"):
         load_robot(tmp_path / "nowhere")
+
+
+def test_the_digest_of_a_robot_of_three_files_is_their_hash(robot):
+    h = hashlib.sha256()
+    for name in ("robot.toml", "robot.xml", "servos.toml"):
+        h.update((robot.directory / name).read_bytes())
+    assert model_files(robot.xml_path) == ()
+    assert robot.digest() == h.hexdigest()  # proofs written before meshes counted stay valid
+
+
+TETRAHEDRON = "v 0 0 0\nv 0.03 0 0\nv 0 0.03 0\nv 0 0 0.03\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+def _robot_with_mesh_and_include(tmp_path: Path, robot) -> Path:
+    copy = tmp_path / "meshy"
+    shutil.copytree(robot.directory, copy)
+    (copy / "parts" / "meshes").mkdir(parents=True)
+    (copy / "parts" / "meshes" / "bump.obj").write_text(TETRAHEDRON)
+    (copy / "parts" / "assets.xml").write_text('<mujoco><asset><mesh name="bump" file="bump.obj"/></asset></mujoco>')
+    xml = (copy / "robot.xml").read_text()
+    xml = xml.replace('<compiler angle="radian" autolimits="true"/>', '<compiler angle="radian" autolimits="true" meshdir="parts/meshes"/>\n  <include file="parts/assets.xml"/>')
+    xml = xml.replace('<site name="torso" pos="0 0 0"/>', '<site name="torso" pos="0 0 0"/><geom name="bump" type="mesh" mesh="bump" pos="0 0 0.2"/>', 1)
+    (copy / "robot.xml").write_text(xml)
+    return copy
+
+
+def test_the_digest_covers_the_meshes_and_included_files_the_model_loads(tmp_path: Path, robot):
+    directory = _robot_with_mesh_and_include(tmp_path, robot)
+    meshy = load_robot(directory)
+    assert [p.relative_to(directory.resolve()).as_posix() for p in model_files(meshy.xml_path)] == ["parts/assets.xml", "parts/meshes/bump.obj"]
+    before = meshy.digest()
+    assert before != robot.digest()
+    (directory / "parts" / "meshes" / "bump.obj").write_text(TETRAHEDRON.replace("v 0 0 0.03", "v 0 0 0.031"))
+    after_mesh = meshy.digest()
+    assert after_mesh != before
+    (directory / "parts" / "assets.xml").write_text('<mujoco><asset><mesh name="bump" file="bump.obj" scale="1 1 1"/></asset></mujoco>')
+    assert meshy.digest() != after_mesh
+
+
+def test_a_mesh_file_the_model_names_but_that_is_missing_is_a_config_error(tmp_path: Path, robot):
+    directory = _robot_with_mesh_and_include(tmp_path, robot)
+    meshy = load_robot(directory)
+    (directory / "parts" / "meshes" / "bump.obj").unlink()
+    with pytest.raises(ConfigError, match="bump.obj"):
+        meshy.digest()
+
+
+def test_a_robot_with_collision_filters_composes_with_a_scene_and_keeps_them(tmp_path: Path, robot):
+    copy = tmp_path / "filters"
+    shutil.copytree(robot.directory, copy)
+    xml = (copy / "robot.xml").read_text().replace(
+        "</mujoco>", '<contact><exclude body1="l_knee_link" body2="r_knee_link"/><pair geom1="l_shank" geom2="r_foot"/></contact></mujoco>'
+    )
+    (copy / "robot.xml").write_text(xml)
+    m = compose(load_robot(copy), "flat")
+    a, b = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ("l_knee_link", "r_knee_link"))
+    assert m.exclude_signature.tolist() == [(min(a, b) << 16) + max(a, b)]
+    assert m.npair == 1 and {m.geom(int(m.pair_geom1[0])).name, m.geom(int(m.pair_geom2[0])).name} == {"l_shank", "r_foot"}

@@ -1,10 +1,14 @@
 from __future__ import annotations
 
 import math
+import shutil
+from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
+from robot_rise.model import load_robot
 from robot_rise.validity import Looseness, ValidityChecker
 
 
@@ -119,3 +123,43 @@ def test_batch_check_agrees_with_single_checks(flat, robot):
     batch = flat.valid_batch(q)
     assert batch.tolist() == [flat.check_qpos(row).valid for row in q]
     assert 0 < batch.sum() < 200
+
+
+def test_obstacle_clearance_is_measured_to_the_nearest_table_leg(robot):
+    table = ValidityChecker(robot, "table")
+    q = _stand_qpos(table, robot, x=0.34)  # the legs stand at x = +-0.28 m, beside the robot's feet
+    m, d = table.model, mujoco.MjData(table.model)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    fromto = np.zeros(6)
+    nearest = min(mujoco.mj_geomDistance(m, d, int(g), int(o), 1.0, fromto) for g in table.index.robot_geoms for o in table.index.obstacle_geoms)
+    assert nearest < 0.03
+    assert table.check_qpos(q).obstacle_clearance_m == pytest.approx(nearest, abs=0.003)
+
+
+def _robot_dir_with(tmp_path: Path, robot, name: str, text_before_worldbody_end: str = "", contact: str = "") -> Path:
+    copy = tmp_path / name
+    shutil.copytree(robot.directory, copy)
+    xml = (copy / "robot.xml").read_text()
+    xml = xml.replace('<site name="torso" pos="0 0 0"/>', '<site name="torso" pos="0 0 0"/>' + text_before_worldbody_end, 1)
+    if contact:
+        xml = xml.replace("</mujoco>", f"<contact>{contact}</contact></mujoco>")
+    (copy / "robot.xml").write_text(xml)
+    return copy
+
+
+def test_links_the_model_excludes_from_contact_are_no_self_collision(tmp_path, robot, flat):
+    excluded = load_robot(_robot_dir_with(tmp_path, robot, "excl", contact='<exclude body1="l_knee_link" body2="r_knee_link"/>'))
+    checker = ValidityChecker(excluded, "flat")
+    q = _stand_qpos(checker, excluded, l_hip_roll=0.4, r_hip_roll=-0.4)
+    assert any({c.geom1, c.geom2} == {"l_shank", "r_shank"} for c in flat.check_qpos(q).collisions)
+    assert not any({c.geom1, c.geom2} == {"l_shank", "r_shank"} for c in checker.check_qpos(q).collisions)
+
+
+def test_a_visual_geom_neither_collides_nor_counts_for_the_lowest_point(tmp_path, robot, flat):
+    shell = '<geom name="shell" type="sphere" size="0.4" contype="0" conaffinity="0" group="2"/>'
+    visual = load_robot(_robot_dir_with(tmp_path, robot, "vis", shell))
+    checker = ValidityChecker(visual, "flat")
+    q = _stand_qpos(checker, visual)
+    assert checker.check_qpos(q).valid
+    assert checker.lowest_point_z(q) == flat.lowest_point_z(_stand_qpos(flat, robot))

@@ -91,6 +91,7 @@ class RiseCase:
     variants_standing: int = 0
     noise_trials: int = 0  # replays with 1e-6 rad target noise
     noise_flips: int = 0  # ... whose verdict differed
+    seconds: dict[str, float] | None = None  # where the wall time went: plan, filter (nominal), ensemble
 
 
 _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
@@ -133,7 +134,17 @@ def _rise_case(args: tuple) -> RiseCase:
         str(rep.get("motion", "")), result.reason, robust,
         margins.variants if margins else 0, margins.variants_standing if margins else 0,
         margins.noise_trials if margins else 0, margins.noise_flips if margins else 0,
+        _seconds(result, rep),
     )
+
+
+def _seconds(result, report) -> dict[str, float]:
+    """Plan, nominal filter and ensemble seconds summed over the attempts (the ensemble's from the
+    filter's report, of the returned trajectory's last filter run only)."""
+    plan = sum(a.seconds.get("plan", 0.0) for a in result.attempts)
+    filt = sum(a.seconds.get("filter", 0.0) for a in result.attempts)
+    ens = float(report.get("ensemble_seconds", 0.0))
+    return {"plan": plan, "filter_nominal": max(0.0, filt - ens), "ensemble": ens}
 
 
 def bench_rise(
@@ -206,6 +217,10 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             tested = [c for c in ok if label in c.robust]
             if tested:
                 row[f"robust: {label}"] = sum(c.robust[label] for c in tested) / len(tested)
+        timed = [c.seconds for c in cs if c.seconds]
+        for stage in ("plan", "filter_nominal", "ensemble"):
+            if timed:
+                row[f"{stage}_median_s"] = float(np.median([t.get(stage, 0.0) for t in timed]))
         measured = [c for c in ok if c.variants]
         if measured:
             shares = np.array([c.variants_standing / c.variants for c in measured])

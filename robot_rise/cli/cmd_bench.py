@@ -44,6 +44,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
+    g = bsub.add_parser("margins", help="random model variants and 1e-6 rad target noise: how far from falling",
+                        formatter_class=Formatter,
+                        epilog="examples:\n  robot-rise bench margins --library --variants 50 --noise-trials 3\n"
+                               "  robot-rise bench margins out/rise.json --variants 50")
+    g.add_argument("trajectories", nargs="*", metavar="TRAJ", help="trajectory files (default with --library: every library motion)")
+    g.add_argument("--library", action="store_true", help="every motion of the robot's library")
+    g.add_argument("--variants", type=int, default=50, metavar="N", help="random model variants per trajectory (default: 50)")
+    g.add_argument("--noise-trials", type=int, default=3, metavar="K", help="noisy re-proofs per trajectory (default: 3)")
+    g.add_argument("--seed", type=int, default=1)
+    g.add_argument("--json", action="store_true")
+    add_robot_args(g)
+    g.set_defaults(func=run_margins)
     from robot_rise.bench.rise import ENVIRONMENT_SCENES
 
     e = bsub.add_parser("environments", help="rise from postures placed in each scene of paper 000 section 5.2",
@@ -97,6 +109,9 @@ def run_rise(args: argparse.Namespace) -> int:
         print(f"| {kind} | {row['n']} | {100 * row['success']:.0f}% | {row['wall_median_s']:.1f} / {row['wall_p95_s']:.1f} | "
               f"{row['duration_median_s']:.2f} | {row['peak_torque_ratio_max']:.2f} |")
     for kind, row in summary.items():
+        if "ensemble_median_s" in row:
+            print(f"{kind}: median seconds: plan {row['plan_median_s']:.2f}, filter (nominal) {row['filter_nominal_median_s']:.2f}, "
+                  f"ensemble {row['ensemble_median_s']:.2f}")
         if "variant_share_median" in row:
             print(f"{kind}: random variants standing per trajectory: median {100 * row['variant_share_median']:.0f} %, "
                   f"min {100 * row['variant_share_min']:.0f} %; {100 * row['variant_share_95_or_more']:.0f} % of trajectories "
@@ -109,6 +124,35 @@ def run_rise(args: argparse.Namespace) -> int:
     for c in cases:
         if not c.proven:
             print(f"failed {c.name}: {c.reason[:300]}")
+    return 0
+
+
+def run_margins(args: argparse.Namespace) -> int:
+    from robot_rise.bench.margins import margins_of
+    from robot_rise.cli._common import Progress, load_trajectory_for
+    from robot_rise.library import load_library
+
+    robot = load_robot_arg(args)
+    named = [(path, load_trajectory_for(robot, path)) for path in args.trajectories]
+    if args.library:
+        named += [(m.name, m.trajectory) for m in load_library(robot_name=robot.library).motions]
+    if not named:
+        raise RobotRiseError("no trajectory to measure", hint="pass TRAJ files or --library")
+    progress = Progress("margins", len(named))
+    rows = []
+    for k, (name, tr) in enumerate(named):
+        m = margins_of(robot, tr, scene=args.scene, variants=args.variants, seed=args.seed, noise_trials=args.noise_trials)
+        rows.append({"name": str(name), "proven": m.proven, "variants": m.variants, "standing": m.variants_standing,
+                     "share": m.variant_share, "noise_trials": m.noise_trials, "noise_flips": m.noise_flips, "failures": list(m.failures)})
+        progress(k + 1)
+    if args.json:
+        print_json(rows)
+        return 0
+    print(f"| trajectory | proven | random variants standing (seed {args.seed}) | verdict flips under 1e-6 rad noise |")
+    print("| --- | :---: | ---: | ---: |")
+    for r in rows:
+        print(f"| {r['name']} | {'yes' if r['proven'] else 'no'} | {r['standing']} / {r['variants']} ({100 * r['share']:.0f} %) | "
+              f"{r['noise_flips']} / {r['noise_trials']} |")
     return 0
 
 

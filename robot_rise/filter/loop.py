@@ -36,6 +36,7 @@ import dataclasses
 import logging
 import math
 import os
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -138,8 +139,11 @@ def dynamics_filter(
                              progress=progress, limits=limits)
     rounds = 0
     recs: list[Recording] = []
+    ensemble_s = 0.0
     while ensemble is not None and result.proven:
+        t0 = time.perf_counter()
         replayed, recs = ensemble.replay(result.trajectory, start=start, config=config)
+        ensemble_s += time.perf_counter() - t0
         failures = replayed.failures()
         proof = with_ensemble(result.proof, replayed)
         report = {**result.report, **proof.to_dict()}
@@ -165,7 +169,8 @@ def dynamics_filter(
             break
         result, recs = again, []
     # what the executor needs: the limits it was proven under, the positions to expect
-    executed = {COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs)}
+    executed = {COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
+                "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds}
     return dataclasses.replace(result, report={**result.report, **executed},
                                trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **executed}))
 

@@ -12,8 +12,9 @@ conservative one of Schwarzer, Saha & Latombe (IEEE T-RO 2005, "exact collision 
 
 where r_root bounds the distance of any robot geom point from the root origin and r_i the
 distance of any geom point in joint i's subtree from joint i's anchor (sum of the body offsets
-along the kinematic chain plus the geom's bounding radius: configuration independent by the
-triangle inequality). A geom can cross an obstacle between two checks only by travelling more
+along the kinematic chain plus the geom's radius about its origin, a mesh's from its convex hull:
+configuration independent by the triangle inequality). Only geoms the model lets collide count
+(``robot_rise.geometry``): a visual geom cannot hit anything. A geom can cross an obstacle between two checks only by travelling more
 than its own thickness plus the obstacle's, so a resolution below the thinnest robot geom plus
 the thinnest obstacle never skips a thin obstacle (see EDGE_RESOLUTION_M in constants).
 """
@@ -27,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from robot_rise.constants import EDGE_RESOLUTION_M
+from robot_rise.geometry import collision_mask, colliding_geoms, geom_radius_m, mesh_hulls
 from robot_rise.planning.space import PostureSpace, quat_angle
 from robot_rise.validity import ValidityChecker, ValidityReport
 
@@ -62,7 +64,10 @@ def lever_arms(checker: ValidityChecker) -> tuple[float, np.ndarray]:
     m = checker.model
     parent = m.body_parentid
     root = checker.index.root_body
-    geoms = [int(g) for g in checker.index.robot_geoms]
+    colliding = colliding_geoms(collision_mask(m), checker.index.robot_geoms)
+    hulls = mesh_hulls(m, colliding)
+    geoms = [int(g) for g in colliding]
+    radius = {g: geom_radius_m(m, g, hulls.get(g)) for g in geoms}
 
     def chain(body: int, top: int) -> float | None:
         """Sum of |body_pos| from ``body`` up to (excluding) ``top``; None if not a descendant."""
@@ -81,7 +86,7 @@ def lever_arms(checker: ValidityChecker) -> tuple[float, np.ndarray]:
             c = chain(int(m.geom_bodyid[g]), top)
             if c is None:
                 continue
-            best = max(best, float(np.linalg.norm(anchor)) + c + float(np.linalg.norm(m.geom_pos[g])) + float(m.geom_rbound[g]))
+            best = max(best, float(np.linalg.norm(anchor)) + c + float(np.linalg.norm(m.geom_pos[g])) + radius[g])
         return best
 
     r_root = reach(root, np.zeros(3))

@@ -205,6 +205,9 @@ def apply_to_model(m: mujoco.MjModel, index: ModelIndex, variant: ModelVariant) 
         m.dof_frictionloss[dofs] *= variant.frictionloss_scale
     if variant.geom_grow_m:
         _grow_geoms(m, index.robot_geoms, variant.geom_grow_m)
+        # the midphase's bounding boxes of a body with several geoms were sized when compiled:
+        # they would miss the grown shapes' contacts
+        m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_MIDPHASE)
 
 
 def _grow_geoms(m: mujoco.MjModel, geoms: np.ndarray, grow_m: float) -> None:

@@ -31,6 +31,7 @@ from robot_rise.planning.energy.capsules import (
     segment_closest_points,
     world_capsules,
 )
+from robot_rise.geometry import collision_mask
 from robot_rise.planning.energy.config import EnergyConfig
 from robot_rise.validity import ValidityChecker
 
@@ -88,6 +89,8 @@ class RepulsiveEnergy:
         d0 = mujoco.MjData(m)
         mujoco.mj_kinematics(m, d0)
         self._obs_a, self._obs_b = self.obstacles.world_endpoints(d0)
+        # robot capsule x obstacle capsule pairs that can collide per the model (contype/conaffinity, excludes)
+        self._obs_ri, self._obs_oi = np.nonzero(collision_mask(m)[np.ix_(self.capsules.geom, self.obstacles.geom)])
         self._bodies = np.unique(self.capsules.body)
         self._body_slot = {int(b): k for k, b in enumerate(self._bodies)}
         self._cap_slot = np.array([self._body_slot[int(b)] for b in self.capsules.body], dtype=int)
@@ -158,10 +161,8 @@ class RepulsiveEnergy:
                 points.append(pt)
                 forces.append((w * -q * hg ** (-q - 1) * dhg)[:, None] * plane.normal[None, :])
                 slots.append(np.concatenate([self._cap_slot[pc], self._corner_slot]))
-        if len(self.obstacles):
-            k_r = np.arange(len(caps))
-            ri, oi = np.meshgrid(k_r, np.arange(len(self.obstacles)), indexing="ij")
-            ri, oi = ri.ravel(), oi.ravel()
+        if self._obs_ri.size:
+            ri, oi = self._obs_ri, self._obs_oi
             dist_o, s_o, t_o = segment_closest_points(a[ri], b[ri], self._obs_a[oi], self._obs_b[oi])
             delta_o = dist_o - caps.radius[ri] - self.obstacles.radius[oi]
             ho, dho = _soft(delta_o, eps)
