@@ -24,7 +24,8 @@ import numpy as np
 from robot_rise.constants import METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
 from robot_rise.errors import ConfigError, SceneError
 from robot_rise.paths import default_robot_dir, scene_path
-from robot_rise.servo import ServoDatasheet, servo_datasheet
+from robot_rise.roles import JointRole, RoleMap
+from robot_rise.servo import ROBOT_SERVO_MODELS_FILE, ServoDatasheet, servo_datasheet
 
 __all__ = [
     "Robot",
@@ -83,8 +84,11 @@ class Robot:
         xml_path: the robot MJCF.
         root_body: name of the body carrying the free joint.
         keyframes: every keyframe's qpos (robot alone) by name.
-        library: name of the motion library the robot uses (``configs/motions/<library>``);
-            a retargeted variant keeps its source robot's library (paper 000 section 5.3).
+        library: the motion library the robot uses: a directory relative to the robot directory
+            if one exists there (an imported robot's ``motions``), else a shipped library name
+            (``configs/motions/<library>``); a retargeted variant keeps its source robot's library
+            (paper 000 section 5.3).
+        roles: joint roles (``[roles]`` of robot.toml, :mod:`robot_rise.roles`); None if not given.
     """
 
     name: str
@@ -102,6 +106,7 @@ class Robot:
     root_body: str
     keyframes: dict[str, np.ndarray] = field(default_factory=dict)
     library: str = ""
+    roles: RoleMap | None = None
 
     @property
     def n_joints(self) -> int:
@@ -121,7 +126,8 @@ class Robot:
 
     def servo_datasheets(self) -> tuple[ServoDatasheet, ...]:
         """Servo spec per joint, in joint order."""
-        return tuple(servo_datasheet(s.model) for s in self.servos)
+        extra = self.directory / ROBOT_SERVO_MODELS_FILE
+        return tuple(servo_datasheet(s.model, extra_catalog=extra) for s in self.servos)
 
     @cached_property
     def stand_height_m(self) -> float:
@@ -139,13 +145,16 @@ class Robot:
     def digest(self) -> str:
         """SHA-256 over every file of the robot (identifies the model a result was proven on).
 
-        robot.toml, the MJCF and servos.toml, then every file the MJCF loads (included XML,
+        robot.toml, the MJCF and servos.toml, the datasheet figures of its servo models (the
+        product catalog or the robot's ``servo_models.toml``), then every file the MJCF loads (included XML,
         meshes, skins, height fields, textures; ``model_files``), each by its path relative to the
         robot directory and its bytes. A robot of the three files alone keeps the digest of those.
         """
         h = hashlib.sha256()
         for path in (self.directory / "robot.toml", self.xml_path, self.directory / "servos.toml"):
             h.update(path.read_bytes())
+        for sheet in sorted({repr(s) for s in self.servo_datasheets()}):  # the servo figures proofs rest on
+            h.update(sheet.encode())
         for path in model_files(self.xml_path):
             h.update(os.path.relpath(path, self.directory).encode())
             h.update(path.read_bytes())
@@ -270,7 +279,8 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) < 0:
             raise ConfigError(f"{root / 'robot.toml'}: site {s!r} is not in {xml_path.name}")
 
-    servos = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name))
+    servos = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
+    roles = _load_roles(root / "robot.toml", meta.get("roles"), joint_names)
 
     # Key qpos in the robot-alone model: root (7) then hinges in order (jnt_qposadr increasing).
     stand = keyframes["stand"]
@@ -292,10 +302,34 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         root_body=root_body,
         keyframes=keyframes,
         library=str(meta.get("library", meta.get("name", root.name))),
+        roles=roles,
     )
 
 
-def _load_servos(path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str) -> tuple[ServoAssignment, ...]:
+def _load_roles(path: Path, table: object, joint_names: tuple[str, ...]) -> RoleMap | None:
+    """``[roles]``: joint = {role, sign, neutral}; every joint once (``extra`` for the unroled)."""
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise ConfigError(f"{path}: [roles] must be a table of joint = {{ role, sign, neutral }}")
+    unknown = [j for j in table if j not in joint_names]
+    if unknown:
+        raise ConfigError(f"{path}: [roles] names unknown joints {', '.join(unknown)}")
+    missing = [j for j in joint_names if j not in table]
+    if missing:
+        raise ConfigError(f"{path}: [roles] lacks joints {', '.join(missing)} (give them role = \"extra\" to hold them)")
+    try:
+        rows = tuple(
+            JointRole(j, str(table[j]["role"]), int(table[j].get("sign", 1)), float(table[j].get("neutral", 0.0))) for j in joint_names
+        )
+        return RoleMap(rows)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise ConfigError(f"{path}: [roles]: {e}") from e
+
+
+def _load_servos(
+    path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str, extra_catalog: Path
+) -> tuple[ServoAssignment, ...]:
     data = _read_toml(path, SERVOS_FORMAT)
     rows = data.get("servo", [])
     by_joint: dict[str, ServoAssignment] = {}
@@ -324,7 +358,7 @@ def _load_servos(path: Path, joint_names: tuple[str, ...], lower: np.ndarray, up
             raise ConfigError(
                 f"{path}: servo {s.id} ({s.joint}) limits [{s.lower}, {s.upper}] must lie inside the model range [{lower[i]}, {upper[i]}]"
             )
-        servo_datasheet(s.model)  # raises on an unknown model
+        servo_datasheet(s.model, extra_catalog=extra_catalog)  # raises on an unknown model
         by_joint[s.joint] = s
         ids.add(s.id)
     missing = [j for j in joint_names if j not in by_joint]
@@ -421,6 +455,7 @@ def compose(
     rspec = mujoco.MjSpec.from_file(str(robot.xml_path))
     for k in list(rspec.keys):
         rspec.delete(k)
+    rspec.nkey = 0  # a <size nkey> of the robot file would conflict with the scene's on attach
     if scene is None:
         spec = rspec
     else:

@@ -35,7 +35,7 @@ from robot_rise.filter import (
     with_ensemble,
 )
 from robot_rise.sim.variants import ModelVariant
-from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames
+from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames, robot_library_dir
 from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
@@ -149,7 +149,7 @@ class RiseContext:
 
     @classmethod
     def build(cls, robot: Robot, scene: str | os.PathLike[str] | None = "flat", library: MotionLibrary | None = None) -> RiseContext:
-        library = library or load_library(robot_name=robot.library)
+        library = library or load_library(robot_library_dir(robot))
         index = lying_frames(FrameIndex.build(library, robot), library)
         return cls(robot, scene, ValidityChecker(robot, scene), library, index, KMeansTree(index))
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import robot_rise.library as library_mod
-from robot_rise.authoring import MOTION_SPECS, ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
+from robot_rise.authoring import ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
 from robot_rise.bench.library import random_lying_postures
 from robot_rise.errors import FormatError
-from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library
+from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library, load_strategies
 from robot_rise.model import load_robot
 from robot_rise.posture import PostureDistance
 from robot_rise.sim.player import Player
@@ -154,23 +154,29 @@ def test_selected_connecting_posture_faces_like_the_lying_robot_and_is_a_library
     assert float(yaw_aligned_orientation_distance(goal.root_quat_wxyz, start.root_quat_wxyz)) < 0.05
 
 
-def test_mirror_swaps_sides_with_the_sign_convention_of_the_model() -> None:
-    from robot_rise.authoring import mirror, sym
+def test_mirror_swaps_sides_in_roles_and_the_op3_roles_mirror_its_joints() -> None:
+    from robot_rise.roles import mirror_role_values
 
-    assert mirror(sym(knee=1.0, hip_roll=0.2)) == sym(knee=1.0, hip_roll=0.2)  # symmetric stays
-    m = mirror({"l_sho_roll": -1.2, "head_pan": 0.5, "head_tilt": 0.1})
-    assert m == {"r_sho_roll": 1.2, "head_pan": -0.5, "head_tilt": 0.1}
-    assert mirror(m) == {"l_sho_roll": -1.2, "head_pan": 0.5, "head_tilt": 0.1}
+    sym = {"left.knee": 1.0, "right.knee": 1.0, "left.hip_roll": 0.2, "right.hip_roll": 0.2}
+    assert mirror_role_values(sym) == sym  # symmetric stays
+    m = mirror_role_values({"left.shoulder_roll": -1.2, "head.pan": 0.5, "head.tilt": 0.1})
+    assert m == {"right.shoulder_roll": -1.2, "head.pan": -0.5, "head.tilt": 0.1}
+    # on the OP3 (right joints mirror their left twins with the opposite sign), a symmetric role
+    # posture is q_right = -q_left for the legs
+    goals = ROBOT.roles.joint_goals(sym)
+    left = [j for j in goals if ROBOT.roles.by_role()["left.knee"].joint == j]
+    right = ROBOT.roles.by_role()["right.knee"].joint
+    assert goals[right] == -goals[left[0]]
 
 
 def test_side_motions_are_mirror_images() -> None:
     """right_tip_forward is authored as the mirror of left_tip_forward: their starts mirror too."""
     if not {"left_tip_forward", "right_tip_forward"} <= set(NAMES):
         pytest.skip("side motions not in the library")
-    from robot_rise.authoring import mirror
+    from robot_rise.roles import mirror_role_values
 
     left, right = LIBRARY.get("left_tip_forward").start, LIBRARY.get("right_tip_forward").start
-    mirrored = mirror(dict(left.joints))
+    mirrored = ROBOT.roles.joint_goals(mirror_role_values(ROBOT.roles.role_values(dict(left.joints))))
     for j, v in right.joints.items():
         assert v == pytest.approx(mirrored[j], abs=0.02), j
 
@@ -231,7 +237,7 @@ def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keep
     assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
 
 
-DYNAMIC_MOTIONS = [s.name for s in MOTION_SPECS if s.clamp_lead]  # authored with momentum (clamp_goal_lead)
+DYNAMIC_MOTIONS = [s.name for s in load_strategies() if s.clamp_lead]  # authored with momentum (clamp_goal_lead)
 
 
 @pytest.mark.parametrize("name", [n for n in DYNAMIC_MOTIONS if n in NAMES])

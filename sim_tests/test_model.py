@@ -91,12 +91,25 @@ def test_a_missing_robot_directory_is_a_config_error(tmp_path: Path):
         load_robot(tmp_path / "nowhere")
 
 
-def test_the_digest_of_a_robot_of_three_files_is_their_hash(robot):
+def test_the_digest_of_a_robot_of_three_files_is_their_hash_and_its_servo_figures(robot, tmp_path):
     h = hashlib.sha256()
     for name in ("robot.toml", "robot.xml", "servos.toml"):
         h.update((robot.directory / name).read_bytes())
+    for sheet in sorted({repr(s) for s in robot.servo_datasheets()}):
+        h.update(sheet.encode())
     assert model_files(robot.xml_path) == ()
-    assert robot.digest() == h.hexdigest()  # proofs written before meshes counted stay valid
+    assert robot.digest() == h.hexdigest()
+    # the servo figures a proof rests on are part of it: a robot's own servo_models.toml changes it
+    copy = tmp_path / "op3"
+    shutil.copytree(robot.directory, copy)
+    from robot_rise.servo import product_catalog_path
+
+    text = product_catalog_path().read_text()
+    assert "stall_torque_nm = 4.1," in text
+    (copy / "servo_models.toml").write_text(text.replace("stall_torque_nm = 4.1,", "stall_torque_nm = 4.0,", 1))
+    weaker = load_robot(copy)
+    assert weaker.servo_datasheets()[0].stall_torque_nm == 4.0
+    assert weaker.digest() != robot.digest()
 
 
 TETRAHEDRON = "v 0 0 0\nv 0.03 0 0\nv 0 0.03 0\nv 0 0 0.03\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"

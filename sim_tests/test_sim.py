@@ -7,7 +7,7 @@ import pytest
 
 import robot_rise.sim.player as sim
 from robot_rise.errors import RobotRiseError
-from robot_rise.authoring import settle, sym
+from robot_rise.authoring import settle
 from robot_rise.model import load_robot
 from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory
@@ -24,7 +24,7 @@ def test_every_name_in_all_resolves() -> None:
 
 
 def test_recording_covers_the_trajectory_and_the_hold_at_the_record_rate(robot) -> None:  # type: ignore[no-untyped-def]
-    start = settle(robot, "supine", sym(sho_roll=1.3))
+    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     q = start.joint_vector(robot.joint_names)
     tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 1.0]), np.stack([q, q]), start)
     rec = Player(robot).play(tr, hold_s=0.5, record_hz=50)
@@ -35,7 +35,7 @@ def test_recording_covers_the_trajectory_and_the_hold_at_the_record_rate(robot) 
 
 
 def test_a_lying_robot_touches_the_ground_with_more_than_its_feet(robot) -> None:  # type: ignore[no-untyped-def]
-    start = settle(robot, "prone", sym(sho_roll=1.3))
+    start = settle(robot, "prone", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     q = start.joint_vector(robot.joint_names)
     tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.2]), np.stack([q, q]), start)
     rec = Player(robot).play(tr, hold_s=0.2)
@@ -45,7 +45,7 @@ def test_a_lying_robot_touches_the_ground_with_more_than_its_feet(robot) -> None
 
 
 def test_servo_torques_never_exceed_the_envelope_even_for_a_goal_jump(robot) -> None:  # type: ignore[no-untyped-def]
-    start = settle(robot, "supine", sym(sho_roll=1.3))
+    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     q = start.joint_vector(robot.joint_names)
     jump = q.copy()
     jump[robot.joint_index("l_sho_pitch")] -= 1.5
@@ -57,7 +57,7 @@ def test_servo_torques_never_exceed_the_envelope_even_for_a_goal_jump(robot) -> 
 
 
 def test_a_trajectory_for_other_joints_is_rejected(robot) -> None:  # type: ignore[no-untyped-def]
-    start = settle(robot, "supine", sym(sho_roll=1.3))
+    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     tr = Trajectory(robot.name, ("head_pan",), np.array([0.0]), np.zeros((1, 1)), start)
     with pytest.raises(RobotRiseError, match="lacks joints"):
         Player(robot).play(tr)
@@ -175,7 +175,7 @@ _FIELDS = {
 
 def _arm_slam(robot):  # type: ignore[no-untyped-def]
     """Supine, arms swung hard across the body: self contact (and the low bed's edge)."""
-    start = settle(robot, "supine", sym(sho_roll=1.3))
+    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     q = start.joint_vector(robot.joint_names)
     slam = q.copy()
     for name, v in (("l_sho_roll", -1.6), ("r_sho_roll", 1.6), ("l_el", -2.0), ("r_el", 2.0)):

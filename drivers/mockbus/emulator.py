@@ -7,6 +7,11 @@ each is fully on the wire (wire timing at the bus baud rate and each servo's ret
 ``wire_timing`` is on; otherwise immediately). Time evolves lazily: the plant, temperatures and
 watchdogs are advanced to the clock's time whenever bytes arrive or :meth:`MockBus.advance` is
 called.
+
+An OP3's OpenCR sub-controller (:class:`~drivers.mockbus.emulated_imu.EmulatedImu`, ID 200,
+model 0x7400) joins the bus when one is passed as ``imu``: it answers PING, READ, WRITE and its
+items of a (plain) SYNC or BULK READ; its IMU registers come from the plant's IMU hook
+(:func:`~drivers.mockbus.plant.imu_source_of`: the physics twin) at the time of each read.
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ from dataclasses import dataclass
 from drivers.clock import Clock, MonotonicClock
 from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
 from drivers.mockbus.faults import FaultInjector
-from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion
+from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion, imu_source_of
+from drivers.mockbus.emulated_imu import EmulatedImu
 from drivers.mockbus.emulated_servo import EmulatedServo
 from drivers.protocol import (
     BROADCAST_ID,
@@ -64,6 +70,8 @@ class MockBus:
         firmware_version: firmware every servo reports.
         boot_time_s: how long a rebooting servo stays silent [s].
         plant_period_s: shortest plant step [s]; present values are at most this old.
+        imu: an OpenCR sub-controller on the bus (its ID must not be a servo's); fed by the
+            plant's IMU hook unless it has a source of its own.
     """
 
     def __init__(self, servos: Mapping[int, str], *, baud_rate: int = 1_000_000,
@@ -71,7 +79,7 @@ class MockBus:
                  faults: FaultInjector | None = None, wire_timing: bool = False,
                  return_delay_units: int = 0, initial_position_ticks: Mapping[int, int] | None = None,
                  firmware_version: int = 46, boot_time_s: float = 0.05,
-                 plant_period_s: float = _PLANT_PERIOD_S) -> None:
+                 plant_period_s: float = _PLANT_PERIOD_S, imu: EmulatedImu | None = None) -> None:
         if baud_rate not in BAUD_INDEX_BY_RATE:
             raise ValueError(f"baud_rate {baud_rate} not in {sorted(BAUD_INDEX_BY_RATE)}")
         self.baud_rate = baud_rate
@@ -91,6 +99,13 @@ class MockBus:
             plant = KinematicPlant(initial_rad={
                 sid: (init.get(sid, CENTER_TICKS) - CENTER_TICKS) * RAD_PER_TICK for sid in servos})
         self.plant = plant
+        self.imu = imu
+        if imu is not None:
+            if imu.id in self.servos:
+                raise ValueError(f"the IMU's ID {imu.id} is a servo's")
+            imu.set("baud_rate", BAUD_INDEX_BY_RATE[baud_rate])  # configured for the bus, as on the robot
+            if imu.source is None:
+                imu.source = imu_source_of(plant)
         self._reader = PacketReader()
         self._last_s = self.clock.now()
         self._wire_free_s = self._last_s  # [s] when the last packet or reply leaves the wire
@@ -169,8 +184,7 @@ class MockBus:
             if self.wire_timing:
                 t_free += wire_time_s(len(frame), self.baud_rate)
             for sid, reply in self._handle(packet, now):
-                servo = self.servos.get(sid)
-                delay = servo.get("return_delay_time") * 2e-6 if (servo and self.wire_timing) else 0.0
+                delay = self._return_delay_s(sid) if self.wire_timing else 0.0
                 mangled = self.faults.mangle(reply)
                 if self.wire_timing:
                     t_free += delay + wire_time_s(len(reply), self.baud_rate)
@@ -180,6 +194,44 @@ class MockBus:
         if self.wire_timing:
             self._wire_free_s = t_free
         return replies
+
+    def _return_delay_s(self, sid: int) -> float:
+        servo = self.servos.get(sid)
+        if servo is not None:
+            return servo.get("return_delay_time") * 2e-6
+        if self.imu is not None and sid == self.imu.id:
+            return self.imu.return_delay_s
+        return 0.0
+
+    def _imu_listening(self, sid: int) -> EmulatedImu | None:
+        imu = self.imu
+        if imu is None or sid != imu.id or sid in self.faults.deaf_ids:
+            return None
+        if BAUD_BY_INDEX.get(imu.get("baud_rate")) != self.baud_rate:
+            return None
+        return imu
+
+    def _imu_answers(self, imu: EmulatedImu, *, is_read: bool = False) -> bool:
+        if imu.id in self.faults.silent_ids:
+            return False
+        level = imu.get("status_return_level")
+        return level >= 2 or (level == 1 and is_read)
+
+    def _imu_single(self, imu: EmulatedImu, p: Packet) -> bytes | None:
+        """PING, READ and WRITE of the OpenCR; other instructions are answered with an Instruction Error."""
+        inst, params, iid = p.instruction, p.params, imu.id
+        if inst == Instruction.PING:
+            return None if iid in self.faults.silent_ids else encode_status(iid, 0, imu.ping_data())
+        if inst == Instruction.READ:
+            if len(params) != 4:
+                err, data = int(StatusError.DATA_LENGTH), b""
+            else:
+                err, data = imu.read(*struct.unpack("<HH", params))
+            return encode_status(iid, err, data) if self._imu_answers(imu, is_read=True) else None
+        if inst == Instruction.WRITE:
+            err = StatusError.DATA_LENGTH if len(params) < 3 else imu.write(params[0] | (params[1] << 8), params[2:])
+            return encode_status(iid, err) if self._imu_answers(imu) else None
+        return encode_status(iid, StatusError.INSTRUCTION) if self._imu_answers(imu) else None
 
     def _listening(self, sid: int, now: float) -> EmulatedServo | None:
         s = self.servos.get(sid)
@@ -200,7 +252,7 @@ class MockBus:
         out: list[tuple[int, bytes]] = []
         targets: Iterable[int]
         if p.servo_id == BROADCAST_ID:
-            targets = sorted(self.servos)
+            targets = sorted([*self.servos, *([self.imu.id] if self.imu is not None else [])])
         else:
             targets = (p.servo_id,)
         if inst == Instruction.STATUS:
@@ -209,6 +261,12 @@ class MockBus:
         if inst in (Instruction.PING, Instruction.READ, Instruction.WRITE, Instruction.REG_WRITE,
                     Instruction.ACTION, Instruction.REBOOT, Instruction.FACTORY_RESET, Instruction.CLEAR):
             for sid in targets:
+                imu = self._imu_listening(sid)
+                if imu is not None:
+                    reply = self._imu_single(imu, p)
+                    if reply is not None and (p.servo_id != BROADCAST_ID or inst == Instruction.PING):
+                        out.append((imu.id, reply))
+                    continue
                 s = self._listening(sid, now)
                 if s is None:
                     continue
@@ -254,6 +312,11 @@ class MockBus:
             return out
         # unknown instruction: unicast answers Instruction Error
         if p.servo_id != BROADCAST_ID:
+            imu = self._imu_listening(p.servo_id)
+            if imu is not None:
+                if self._imu_answers(imu):
+                    out.append((imu.id, encode_status(imu.id, StatusError.INSTRUCTION)))
+                return out
             s = self._listening(p.servo_id, now)
             if s is not None and self._answers(s):
                 out.append((s.id, encode_status(s.id, StatusError.INSTRUCTION | s.alert)))
@@ -312,6 +375,14 @@ class MockBus:
         out: list[tuple[int, bytes]] = []
         broken = False
         for sid, (address, length) in zip(ids, spans):
+            imu = self._imu_listening(sid)
+            if imu is not None:  # the OpenCR answers plain sync / bulk reads only
+                if fast or not self._imu_answers(imu, is_read=True):
+                    broken = True
+                    continue
+                err, data = imu.read(address, length)
+                out.append((sid, encode_status(sid, err, data if len(data) == length else bytes(length))))
+                continue
             s = self._listening(sid, now)
             if s is None:
                 broken = True

@@ -10,11 +10,19 @@ The default :class:`KinematicPlant` is a first-order servo with a speed limit: f
 The physics twin ``robot_rise.sim.twin.MujocoTwin`` satisfies :class:`JointPlant` structurally
 (this package never imports ``robot_rise``); ``robot-rise execute --mock --twin`` and
 ``robot-rise mockbus serve --twin`` wire it in.
+
+The IMU hook: a plant that also knows how the robot's body moves offers ``imu_state()``
+(:class:`ImuSource`), the true inertial state of the body the IMU sits on, in that body's frame:
+orientation (quaternion w, x, y, z of the body in the world), angular velocity [rad/s] and
+specific force [m/s^2] (what an accelerometer measures: ``R^T (a - g)``, so +9.81 m/s^2 along
+the body's up axis at rest). The emulated IMU (:mod:`drivers.mockbus.emulated_imu`) reads it
+through :func:`imu_source_of` and adds the sensor errors of :class:`ImuNoise` (seeded).
 """
 
 from __future__ import annotations
 
 import math
+import random
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
@@ -22,7 +30,10 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 if TYPE_CHECKING:
     from drivers.servo_map import ServoMap
 
-__all__ = ["ServoCommand", "ServoMotion", "Plant", "JointPlant", "ServoFramePlant", "KinematicPlant"]
+__all__ = ["ServoCommand", "ServoMotion", "Plant", "JointPlant", "ServoFramePlant", "KinematicPlant",
+           "STANDARD_GRAVITY_M_S2", "ImuStateLike", "ImuState", "ImuSource", "ImuNoise", "imu_source_of"]
+
+STANDARD_GRAVITY_M_S2 = 9.80665  # [m/s^2] standard gravity (what an accelerometer at rest reads)
 
 
 @dataclass(frozen=True)
@@ -159,3 +170,133 @@ class KinematicPlant:
             self._vel[sid] = vel
             out[sid] = ServoMotion(new, vel, torque)
         return out
+
+
+# ---- the IMU hook ----------------------------------------------------------------------------
+
+
+class ImuStateLike(Protocol):
+    """The inertial state of the body the IMU sits on (:class:`ImuState`'s attributes)."""
+
+    @property
+    def t_s(self) -> float: ...
+
+    @property
+    def quat_wxyz(self) -> tuple[float, float, float, float]: ...
+
+    @property
+    def angular_velocity_rad_s(self) -> tuple[float, float, float]: ...
+
+    @property
+    def specific_force_m_s2(self) -> tuple[float, float, float]: ...
+
+
+@dataclass(frozen=True)
+class ImuState:
+    """The true inertial state of the IMU's body, in the body frame.
+
+    Attributes:
+        t_s: plant time of the state [s].
+        quat_wxyz: orientation of the body in the world (unit quaternion w, x, y, z).
+        angular_velocity_rad_s: body angular velocity in the body frame [rad/s], 3 values.
+        specific_force_m_s2: ``R^T (a - g)`` in the body frame [m/s^2], 3 values (at rest
+            upright: (0, 0, +9.81)).
+    """
+
+    t_s: float = 0.0
+    quat_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    angular_velocity_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    specific_force_m_s2: tuple[float, float, float] = (0.0, 0.0, STANDARD_GRAVITY_M_S2)
+
+    def __post_init__(self) -> None:
+        for name, n in (("quat_wxyz", 4), ("angular_velocity_rad_s", 3), ("specific_force_m_s2", 3)):
+            value = tuple(float(v) for v in getattr(self, name))
+            if len(value) != n or not all(math.isfinite(v) for v in value):
+                raise ValueError(f"ImuState.{name} needs {n} finite values, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, value)
+        norm = math.sqrt(sum(v * v for v in self.quat_wxyz))
+        if not 0.5 < norm < 1.5:
+            raise ValueError(f"ImuState.quat_wxyz {self.quat_wxyz} is not a unit quaternion")
+        object.__setattr__(self, "quat_wxyz", tuple(v / norm for v in self.quat_wxyz))
+
+
+@runtime_checkable
+class ImuSource(Protocol):
+    """A plant that knows how the IMU's body moves (the physics twin is one)."""
+
+    def imu_state(self) -> ImuStateLike:
+        """The body's inertial state now (true values, no sensor errors)."""
+        ...
+
+
+def imu_source_of(plant: object) -> ImuSource | None:
+    """The IMU hook of ``plant``, looking through a :class:`ServoFramePlant`; ``None`` if it has none."""
+    if isinstance(plant, ImuSource):
+        return plant
+    inner = plant.plant if isinstance(plant, ServoFramePlant) else None
+    return inner if isinstance(inner, ImuSource) else None
+
+
+def _vector3(name: str, value: tuple[float, ...]) -> tuple[float, float, float]:
+    v = tuple(float(x) for x in value)
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ValueError(f"ImuNoise.{name} needs 3 finite values, got {value!r}")
+    return v  # type: ignore[return-value]
+
+
+def _quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """Sensor errors the emulated IMU adds to the plant's true state (all zero: a perfect IMU).
+
+    Attributes:
+        gyro_noise_rad_s: white noise per axis and sample, standard deviation [rad/s].
+        accel_noise_m_s2: white noise per axis and sample, standard deviation [m/s^2].
+        gyro_bias_rad_s: constant offset per axis [rad/s] (body frame).
+        accel_bias_m_s2: constant offset per axis [m/s^2] (body frame).
+        orientation_noise_rad: white noise of the fused orientation, a random rotation with
+            this standard deviation per axis [rad].
+        seed: seed of the noise generator (the same seed gives the same samples).
+    """
+
+    gyro_noise_rad_s: float = 0.0
+    accel_noise_m_s2: float = 0.0
+    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_bias_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation_noise_rad: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("gyro_noise_rad_s", "accel_noise_m_s2", "orientation_noise_rad"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"ImuNoise.{name} must be a finite standard deviation >= 0, got {value}")
+        object.__setattr__(self, "gyro_bias_rad_s", _vector3("gyro_bias_rad_s", self.gyro_bias_rad_s))
+        object.__setattr__(self, "accel_bias_m_s2", _vector3("accel_bias_m_s2", self.accel_bias_m_s2))
+
+    def rng(self) -> random.Random:
+        """A fresh noise generator seeded with :attr:`seed`."""
+        return random.Random(self.seed)
+
+    def apply(self, state: ImuStateLike, rng: random.Random) -> ImuState:
+        """``state`` as the sensor reports it: bias and noise added (drawn from ``rng``)."""
+        gauss = rng.gauss
+        sg, sa, so = self.gyro_noise_rad_s, self.accel_noise_m_s2, self.orientation_noise_rad
+        w = tuple(v + b + (gauss(0.0, sg) if sg else 0.0)
+                  for v, b in zip(state.angular_velocity_rad_s, self.gyro_bias_rad_s))
+        f = tuple(v + b + (gauss(0.0, sa) if sa else 0.0)
+                  for v, b in zip(state.specific_force_m_s2, self.accel_bias_m_s2))
+        q = tuple(state.quat_wxyz)
+        if so:
+            rx, ry, rz = gauss(0.0, so), gauss(0.0, so), gauss(0.0, so)
+            angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+            if angle > 0.0:
+                s = math.sin(angle / 2) / angle
+                q = _quat_mul(q, (math.cos(angle / 2), rx * s, ry * s, rz * s))  # a rotation in the body frame
+        return ImuState(state.t_s, q, w, f)  # type: ignore[arg-type]

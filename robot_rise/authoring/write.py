@@ -28,9 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.authoring.goal_lead import clamp_goal_lead
-from robot_rise.authoring.keyframes import build_trajectory
+from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import settle
-from robot_rise.authoring.op3_motions import MOTION_SPECS
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import TORQUE_BOUND, robustness_players
 from robot_rise.errors import FormatError, PostureError
@@ -46,14 +45,14 @@ from robot_rise.filter import (
     prove,
     with_ensemble,
 )
-from robot_rise.library import LIBRARY_FORMAT, load_library
+from robot_rise.library import LIBRARY_FORMAT, Strategy, joint_keyframes, load_library, load_strategies, robot_library_dir
 from robot_rise.model import Robot, load_robot
 from robot_rise.posture import LIMIT_CLAMP_TOLERANCE_RAD, clamp_to_limits, posture_from_dict, write_posture
 from robot_rise.sampling import classify_lying
 from robot_rise.sim.standing import judge
 from robot_rise.trajectory import Trajectory, trajectory_from_dict, trajectory_to_dict, write_trajectory
 
-__all__ = ["author_library", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
+__all__ = ["author_library", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
 
 log = logging.getLogger(__name__)
 
@@ -125,7 +124,7 @@ def reprove_library(directory: str | Path | None, robot: Robot, *, scene: str = 
             tolerance past a limit.
         PostureError: a start posture lies further than the tolerance past a limit.
     """
-    lib = load_library(directory, robot_name=robot.name)
+    lib = load_library(directory if directory is not None else robot_library_dir(robot))
     index_path = lib.directory / "index.json"
     index_text = index_path.read_text()
     index = json.loads(index_text)
@@ -190,23 +189,54 @@ def _clamp_rows(obj: dict, tr: Trajectory, robot: Robot, *, where: str) -> None:
         obj["q"][r][c] = float(inside[r, c])
 
 
-def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str] | None = None) -> list[dict]:
+def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -> tuple[MotionSpec, ...]:
+    """The strategies (default: the shipped ones, ``configs/strategies``) as motions of ``robot``: role values mapped to its joints."""
+    out = []
+    for s in strategies if strategies is not None else load_strategies():
+        lying, keyframes = joint_keyframes(s, robot)
+        out.append(
+            MotionSpec(
+                name=s.name,
+                lying=s.lying,
+                strategy=s.description,
+                lying_joints=lying,
+                keyframes=tuple(Keyframe(t, goals) for t, goals in keyframes),
+                connect_keyframe=s.connect_keyframe,
+                lying_yaw_rad=s.lying_yaw_rad,
+                retime=s.retime,
+                clamp_lead=s.clamp_lead,
+            )
+        )
+    return tuple(out)
+
+
+def author_library(
+    out_dir: Path,
+    robot: Robot | None = None,
+    *,
+    names: list[str] | None = None,
+    strategies: tuple[Strategy, ...] | None = None,
+    failures: dict[str, str] | None = None,
+) -> list[dict]:
     """Settle, retime, play and judge motions; write the passing ones and merge them into the index.
 
     A motion is written (and its index row added or replaced) only if it stands, within
     ``TORQUE_BOUND`` of the envelope and without self collision, nominally and at the four
-    friction/mass corners; a failing motion is logged and leaves the files and the index as they
-    were, so ``index.json`` always names motions that pass. Rows of motions no longer in
-    ``MOTION_SPECS`` are dropped when the whole library is rebuilt (``names`` None).
+    friction/mass corners, and its ensemble proof says proven; a failing motion is logged (and
+    its reason put in ``failures``) and leaves the files and the index as they were, so
+    ``index.json`` always names motions that pass. Rows of motions no longer among the strategies
+    are dropped when the whole library is rebuilt (``names`` None).
 
     Args:
         out_dir: the library directory (created if missing), e.g. ``configs/motions/op3``.
-        robot: the robot (default: the embedded OP3-class robot, whose joints the motions name).
+        robot: the robot (default: the embedded OP3-class robot); it needs joint roles.
         names: the motions to rebuild, their rows replaced or added and the others kept; None or
-            empty: every motion of ``MOTION_SPECS`` (only None drops stale rows).
+            empty: every strategy (only None drops stale rows).
+        strategies: the strategies to adapt (default: the shipped ones).
+        failures: filled with name -> reason for each strategy not written.
 
     Returns:
-        the index rows of the motions written by this call, in ``MOTION_SPECS`` order.
+        the index rows of the motions written by this call, in strategy order.
     """
     robot = robot or load_robot()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -220,17 +250,24 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
         except (ValueError, KeyError):
             old_rows = {}
     entries = []
-    for spec in MOTION_SPECS:
+    specs = motion_specs(robot, strategies)
+    failed = failures if failures is not None else {}
+
+    def fail(name: str, reason: str) -> None:
+        log.error("%s: not written: %s", name, reason)
+        failed[name] = reason
+
+    for spec in specs:
         if names and spec.name not in names:
             continue
         try:
             start = clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
         except PostureError as e:
-            log.error("%s: not written: %s", spec.name, e)
+            fail(spec.name, str(e))
             continue
         kind = classify_lying(start.root_quat_wxyz)
         if kind != spec.lying:
-            log.error("%s: start posture settled %s, not %s: not written", spec.name, kind, spec.lying)
+            fail(spec.name, f"its lying posture settles {kind}, not {spec.lying}")
             continue
         if spec.retime:
             fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
@@ -245,7 +282,7 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
         verdicts = [judge(p.play(tr)) for p in players]
         bad = [f"{i}: {v.summary()}" for i, v in enumerate(verdicts) if not v.standing or v.self_collision or v.peak_envelope_ratio > TORQUE_BOUND]
         if bad:
-            log.error("%s (%.2f s) fails, not written: %s", spec.name, tr.duration_s, "; ".join(bad))
+            fail(spec.name, f"{tr.duration_s:.2f} s motion fails on the robustness players: " + "; ".join(bad))
             continue
         rec = player.play(tr)
         v = judge(rec)
@@ -269,7 +306,7 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
         as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
         tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
         if not proof.proven:
-            log.error("%s (%.2f s) is not proven, not written: %s", spec.name, tr.duration_s, "; ".join(proof.problems))
+            fail(spec.name, f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems))
             continue
         tmp_dir = out_dir / ".authoring"
         tmp_dir.mkdir(exist_ok=True)
@@ -290,12 +327,12 @@ def author_library(out_dir: Path, robot: Robot | None = None, *, names: list[str
         }
         entries.append(row)
         old_rows[spec.name] = row
-        order = [s.name for s in MOTION_SPECS]
+        order = [s.name for s in specs]
         keep = [n for n in order if n in old_rows] + [n for n in old_rows if n not in order]
         index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in keep]}
         write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     if names is None:  # a full rebuild drops rows of motions no longer authored (failed ones keep their last passing files)
-        order = [s.name for s in MOTION_SPECS]
+        order = [s.name for s in specs]
         index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in order if n in old_rows]}
         write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     return entries

@@ -154,10 +154,12 @@ def supine_quat_wxyz() -> np.ndarray:
     return np.array([math.cos(a / 2), 0.0, math.sin(a / 2), 0.0])
 
 
-def _posture(robot: Robot, checker: ValidityChecker, quat: np.ndarray, joints: dict[str, float], jitter: np.ndarray) -> Posture:
-    """A posture resting on the ground (lowest point GROUND_GAP_M above z = 0)."""
+def _posture(robot: Robot, checker: ValidityChecker, quat: np.ndarray, roles: dict[str, float], jitter: np.ndarray) -> Posture:
+    """A posture resting on the ground (lowest point GROUND_GAP_M above z = 0); joints not named by a role at zero."""
+    if robot.roles is None:
+        raise ValueError(f"robot {robot.name} has no joint roles ([roles] in robot.toml)")
     q = np.zeros(robot.n_joints)
-    for name, v in joints.items():
+    for name, v in robot.roles.joint_goals(roles).items():
         q[robot.joint_index(name)] = v
     q = np.clip(q + jitter, robot.joint_lower, robot.joint_upper)
     p = Posture(robot.name, np.array([0.0, 0.0, 0.3]), quat, dict(zip(robot.joint_names, q)))
@@ -166,42 +168,42 @@ def _posture(robot: Robot, checker: ValidityChecker, quat: np.ndarray, joints: d
 
 
 def _base_pairs() -> dict[str, tuple[tuple[np.ndarray, dict[str, float]], tuple[np.ndarray, dict[str, float]]]]:
-    """Start and goal (orientation, joints) of each kind; joint names of the OP3-class robot's MJCF."""
-    d = math.radians
+    """Start and goal (orientation, role values: robot_rise.roles) of each kind.
+
+    Written for the OP3-class robot (its joint values of issue 7 converted to roles, to 1e-6 deg).
+    """
+
+    def d(deg: float) -> float:
+        return math.radians(deg)
+
     sup = supine_quat_wxyz()
     upright = np.array([1.0, 0.0, 0.0, 0.0])
-    arms_common = {"l_sho_roll": d(90), "r_sho_roll": -d(90), "l_el": -d(85), "r_el": d(85)}
+    arms_common = {"left.shoulder_roll": d(-1.191542), "left.elbow": d(83.854084), "right.shoulder_roll": d(-1.191542), "right.elbow": d(83.854084)}
 
     def legs(left_over: bool) -> dict[str, float]:
-        up, down = ("l", "r") if left_over else ("r", "l")
-        flex = {"l": -1.0, "r": 1.0}  # sign of hip flexion per side
-        add = {"l": 1.0, "r": -1.0}  # sign of hip adduction per side
-        return {
-            f"{up}_hip_pitch": flex[up] * d(35),
-            f"{down}_hip_pitch": flex[down] * d(5),
-            f"{up}_hip_roll": add[up] * 0.4,
-            f"{down}_hip_roll": add[down] * 0.4,
-        }
+        up, down = ("left", "right") if left_over else ("right", "left")
+        # the upper leg flexed 35 deg over the lower one (5 deg), both adducted 0.4 rad
+        return {f"{up}.hip_pitch": d(-35.0), f"{down}.hip_pitch": d(-5.0), f"{up}.hip_roll": -0.4, f"{down}.hip_roll": -0.4}
 
     return {
         "crossed_arms": (
-            (sup, {**arms_common, "l_sho_pitch": -d(105), "r_sho_pitch": d(75)}),
-            (sup, {**arms_common, "l_sho_pitch": -d(75), "r_sho_pitch": d(105)}),
+            (sup, {**arms_common, "left.shoulder_pitch": d(-103.281127), "right.shoulder_pitch": d(-73.281127)}),
+            (sup, {**arms_common, "left.shoulder_pitch": d(-73.281127), "right.shoulder_pitch": d(-103.281127)}),
         ),
         "crossed_legs": ((sup, legs(True)), (sup, legs(False))),
         "arm_under_back": (
-            (sup, {"l_sho_pitch": d(90), "l_sho_roll": d(85), "l_el": -d(80), "r_sho_roll": -d(80)}),
+            (sup, {"left.shoulder_pitch": d(91.718873), "left.shoulder_roll": d(3.808458), "left.elbow": d(78.854084), "right.shoulder_roll": d(8.808458)}),
             (
                 upright,
                 {
-                    "l_hip_pitch": -d(90),
-                    "r_hip_pitch": d(90),
-                    "l_sho_pitch": -d(30),
-                    "r_sho_pitch": d(30),
-                    "l_sho_roll": d(70),
-                    "r_sho_roll": -d(70),
-                    "l_el": -d(10),
-                    "r_el": d(10),
+                    "left.hip_pitch": d(-90.0),
+                    "right.hip_pitch": d(-90.0),
+                    "left.shoulder_pitch": d(-28.281127),
+                    "right.shoulder_pitch": d(-28.281127),
+                    "left.shoulder_roll": d(18.808458),
+                    "right.shoulder_roll": d(18.808458),
+                    "left.elbow": d(8.854084),
+                    "right.elbow": d(8.854084),
                 },
             ),
         ),
@@ -284,10 +286,10 @@ def library_digest(robot: Robot) -> str:
     """SHA-256 (first 16 hex digits) of the robot's motion library files: the connecting postures depend on them."""
     import hashlib
 
-    from robot_rise.library import default_library_dir
+    from robot_rise.library import robot_library_dir
 
     h = hashlib.sha256()
-    root = Path(default_library_dir(robot.library))
+    root = robot_library_dir(robot)
     for f in sorted(root.glob("*.json")):
         h.update(f.name.encode())
         h.update(f.read_bytes())

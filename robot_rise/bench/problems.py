@@ -206,10 +206,10 @@ class FrozenProblem:
 
 def library_digest(robot: Robot) -> str:
     """SHA-256 (first 16 hex digits) of the robot's motion library files."""
-    from robot_rise.library import default_library_dir
+    from robot_rise.library import robot_library_dir
 
     h = hashlib.sha256()
-    for f in sorted(Path(default_library_dir(robot.library)).glob("*.json")):
+    for f in sorted(robot_library_dir(robot).glob("*.json")):
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]

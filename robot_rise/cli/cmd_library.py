@@ -7,6 +7,7 @@ from pathlib import Path
 
 from robot_rise.cli import EXIT_FAILURE, EXIT_OK
 from robot_rise.constants import ENVELOPE_MARGIN
+from robot_rise.errors import ConfigError
 
 __all__ = ["register"]
 
@@ -36,9 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     b.set_defaults(func=_bench)
     a = sub.add_parser(
         "author",
-        help="regenerate the OP3 motions from their keyframes (settle, retime, verify, write; minutes per motion)",
-        description="Regenerate the OP3 motion library from the keyframes in robot_rise.authoring.op3_motions: "
-        "each motion is settled, retimed in MuJoCo and verified on nominal and the four friction/mass corners; "
+        help="regenerate the shipped OP3 motions from the strategies (settle, retime, verify, write; minutes per motion)",
+        description="Regenerate a motion library from the strategies in configs/strategies (role keyframes mapped onto "
+        "the robot's joints): each motion is settled, retimed in MuJoCo and verified on nominal and the four friction/mass corners; "
         "only passing motions are written and their index rows added or replaced. Progress is logged with -v.",
         epilog="Example: robot-rise -v library author --out /tmp/op3 --only prone_knees_first",
     )
@@ -53,6 +54,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="motions to rebuild (their index rows are replaced or added; others kept); default: all, dropping rows of motions no longer authored",
     )
     a.set_defaults(func=_author)
+    bu = sub.add_parser(
+        "build",
+        help="adapt every strategy to a robot, prove each with the ensemble, write its library and a report",
+        description="Build a robot's motion library from the shipped strategies (configs/strategies: get-up motions "
+        "written in joint roles). Each strategy is mapped onto the robot's joints by the [roles] of its robot.toml, its "
+        "lying posture settled, its timing found in MuJoCo against the servos' envelope, verified on the friction/mass "
+        "corners and proven on the ensemble; only proven motions are written. The report says which strategies work "
+        "for which lying kind and why the others failed (also written as build_report.json).",
+        epilog="Example: robot-rise library build --robot robots/wolfgang --jobs 2",
+    )
+    bu.add_argument("--out", type=Path, default=None, help="library directory (default: the robot directory's library, robot.toml 'library')")
+    bu.add_argument("--jobs", type=int, default=1, help="processes: strategies are built in parallel (default 1)")
+    bu.add_argument("--only", dest="names", nargs="*", default=None, metavar="NAME", help="strategies to build (default: all)")
+    bu.set_defaults(func=_build)
     pr = sub.add_parser(
         "prove",
         help="re-prove every motion in place (fresh proofs in the files' reports; rows kept)",
@@ -68,11 +83,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    from robot_rise.library import load_library
+    from robot_rise.library import load_library, robot_library_dir
     from robot_rise.model import load_robot
 
     robot = load_robot(args.robot)
-    return robot, load_library(args.dir, robot_name=robot.name)
+    return robot, load_library(args.dir if args.dir is not None else robot_library_dir(robot))
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -134,6 +149,24 @@ def _author(args: argparse.Namespace) -> int:
     for row in entries:
         print(f"{row['name']:24s} {row['duration_s']:6.2f}s  written to {out}")
     return EXIT_OK if entries else EXIT_FAILURE
+
+
+def _build(args: argparse.Namespace) -> int:
+    from robot_rise.authoring.build import build_library
+    from robot_rise.model import load_robot
+
+    robot = load_robot(args.robot)
+    if args.jobs < 1:
+        raise ConfigError("--jobs must be at least 1")
+    report = build_library(robot, args.out, jobs=args.jobs, names=args.names)
+    print(f"library of {robot.name}: {report.directory}")
+    for row in report.written:
+        print(f"  proven   {row['lying']:7s} {row['name']:26s} {row['duration_s']:6.2f} s")
+    for name, reason in report.failed.items():
+        print(f"  failed   {report.lying.get(name, ''):7s} {name:26s} {reason}")
+    for kind in report.kinds_without_motion():
+        print(f"  no proven motion for lying {kind}: rise from {kind} postures will fail on this robot")
+    return EXIT_OK if report.written else EXIT_FAILURE
 
 
 def _prove(args: argparse.Namespace) -> int:

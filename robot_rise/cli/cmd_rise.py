@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
     start = read_posture(args.start, robot)
     key = read_posture(args.key, robot) if args.key else None
-    library = load_library(args.library, robot_name=robot.name) if args.library else None
+    library = load_library(args.library) if args.library else None
     tty = sys.stderr.isatty()
 
     def progress(stage: str) -> None:

@@ -6,7 +6,9 @@ import argparse
 
 from robot_rise.cli._common import Formatter, load_robot_arg
 from robot_rise.model import compose
+from robot_rise.errors import ConfigError
 from robot_rise.retarget import BodyScale, scale_robot
+from robot_rise.robot_import import import_robot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +30,25 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc.add_argument("--torso", type=float, default=1.0, help="torso length factor (default 1.0)")
     sc.add_argument("--name", help="new robot name (default: <source>_scaled)")
     sc.set_defaults(func=run_scale)
+    im = rsub.add_parser(
+        "import",
+        help="write a robot directory from an MJCF, URDF or xacro file",
+        formatter_class=Formatter,
+        description="Import a robot as its team published it: strips actuators and sensors (robot_rise adds its own servo\n"
+        "model), keeps collision filters, copies meshes, infers legs, arms, head, joint roles and signs, adds sole and\n"
+        "torso sites, finds a standing posture (the 'stand' keyframe, else searched and held by the servo model) and\n"
+        "writes robot.toml (every inference, to correct by editing it) and servos.toml.",
+        epilog="examples:\n  robot-rise robot import wolfgang.xml --out robots/wolfgang --servo-model MX-106 --servo-model KNEE_JOINT=XH540-W270\n"
+        "  robot-rise robot import bez1.urdf --out robots/bez1 --servos my_servos.toml",
+    )
+    im.add_argument("model", metavar="MODEL", help="MJCF (.xml), URDF (.urdf) or .xacro (needs the xacrodoc package)")
+    im.add_argument("--out", required=True, metavar="DIR", help="robot directory to write (must not exist, unless --force)")
+    src = im.add_mutually_exclusive_group(required=True)
+    src.add_argument("--servos", metavar="SERVOS.toml", help="your servo map (IDs, models, directions, offsets, limits)")
+    src.add_argument("--servo-model", action="append", metavar="M|JOINT=M", help="write a template servo map: M for every joint, JOINT=M for one (repeat)")
+    im.add_argument("--name", help="robot name (default: the model file's name)")
+    im.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    im.set_defaults(func=run_import)
 
 
 def run_show(args: argparse.Namespace) -> int:
@@ -45,4 +66,18 @@ def run_scale(args: argparse.Namespace) -> int:
     robot = scale_robot(src, args.out, BodyScale(arms=args.arms, legs=args.legs, torso=args.torso), name=args.name)
     m = compose(robot, None)
     print(f"wrote {args.out}: robot {robot.name}, mass {m.body_mass.sum():.3f} kg, stand height {robot.stand_height_m:.3f} m")
+    return 0
+
+
+def run_import(args: argparse.Namespace) -> int:
+    models: dict[str, str] = {}
+    for item in args.servo_model or ():
+        joint, sep, model = item.partition("=")
+        if sep and not (joint and model):
+            raise ConfigError(f"--servo-model {item!r}: expected MODEL or JOINT=MODEL")
+        models[joint if sep else "*"] = model if sep else joint
+    result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name, force=args.force)
+    for note in result.notes:
+        print(f"  {note}")
+    print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library build --robot {result.directory})")
     return 0

@@ -7,7 +7,8 @@
 """
 
 from robot_rise.library.frames import Connection, FrameIndex
-from robot_rise.library.motions import LIBRARY_FORMAT, LYING_KINDS, Motion, MotionLibrary, default_library_dir, load_library
+from robot_rise.library.motions import LIBRARY_FORMAT, LYING_KINDS, Motion, MotionLibrary, default_library_dir, load_library, robot_library_dir
+from robot_rise.library.strategies import STRATEGY_FORMAT, RoleKeyframe, Strategy, joint_keyframes, load_strategies, read_strategy
 from robot_rise.library.selection import LYING_ROOT_RISE_M, connecting_posture, connection_candidates, lying_frames, select_connecting_posture
 from robot_rise.library.tree import TREE_BRANCHING, TREE_LEAF_SIZE, KMeansTree
 
@@ -18,6 +19,13 @@ __all__ = [
     "MotionLibrary",
     "load_library",
     "default_library_dir",
+    "robot_library_dir",
+    "STRATEGY_FORMAT",
+    "RoleKeyframe",
+    "Strategy",
+    "joint_keyframes",
+    "load_strategies",
+    "read_strategy",
     "FrameIndex",
     "Connection",
     "KMeansTree",

@@ -13,11 +13,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robot_rise.errors import FormatError
+from robot_rise.model import Robot
 from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, read_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
 
-__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "Motion", "MotionLibrary", "load_library", "default_library_dir"]
+__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
 
 LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
@@ -26,6 +27,14 @@ LYING_KINDS = ("supine", "prone", "left", "right")
 def default_library_dir(robot_name: str = "op3") -> Path:
     """The shipped library of a robot: ``configs/motions/<robot>``."""
     return configs_dir() / "motions" / robot_name
+
+
+def robot_library_dir(robot: Robot) -> Path:
+    """The library a robot uses (robot.toml's ``library``): a directory of that name in the robot
+    directory if there is one (an imported robot's own ``motions``), else the shipped
+    ``configs/motions/<library>``."""
+    own = robot.directory / robot.library
+    return own if own.is_dir() else default_library_dir(robot.library)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.library.frames import Connection, FrameIndex
-from robot_rise.library.motions import MotionLibrary, default_library_dir, load_library
+from robot_rise.library.motions import MotionLibrary, load_library, robot_library_dir
 from robot_rise.library.tree import KMeansTree
 from robot_rise.model import Robot
 from robot_rise.placement import place_near
@@ -96,7 +96,7 @@ def _cached_selection(directory: str, robot_dir: str, scene: str) -> tuple[Motio
     from robot_rise.model import load_robot
 
     robot = load_robot(robot_dir)
-    lib = load_library(directory, robot_name=robot.name)
+    lib = load_library(directory if directory is not None else robot_library_dir(robot))
     index = lying_frames(FrameIndex.build(lib, robot), lib)
     return lib, index, KMeansTree(index), ValidityChecker(robot, scene)
 
@@ -109,7 +109,7 @@ def select_connecting_posture(
     as ``rise`` selects its first candidate. The library, its frame index and tree are built once
     per (library, robot, scene).
     """
-    lib_dir = str(Path(directory) if directory is not None else default_library_dir(robot.library))
+    lib_dir = str(Path(directory) if directory is not None else robot_library_dir(robot))
     lib, index, tree, checker = _cached_selection(lib_dir, str(robot.directory), scene)
     conn = connection_candidates(lib, robot, start, 1, index=index, tree=tree)[0]
     log.info("connecting posture: %s frame %d (t = %.2f s), distance %.3f", conn.motion, conn.frame, conn.time_s, conn.distance)

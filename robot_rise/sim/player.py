@@ -166,6 +166,9 @@ class Player:
         self._torso_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.torso_site)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
         foot_bodies = {int(m.site_bodyid[s]) for s in self._sole_sites}
+        for b in range(m.nbody):  # with their rigid parts (cleats, toe plates) as child bodies
+            if int(m.body_parentid[b]) in foot_bodies and m.body_jntnum[b] == 0:
+                foot_bodies.add(b)
         rg = self.index.robot_geoms
         self._robot_geom_col = np.full(m.ngeom, -1, dtype=int)
         self._robot_geom_col[rg] = np.arange(rg.size)

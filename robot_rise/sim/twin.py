@@ -14,6 +14,13 @@ one position servo per joint, the same servo model the player uses), stepped at 
 timestep (2 ms). A servo with torque off (or zero PWM) exerts no position-loop force; its
 joint keeps the passive damping and friction of the gear train. Goal PWM below 100 % scales
 the torque limit.
+
+The twin also feeds the bus's IMU (``drivers.mockbus.ImuSource``, structurally): ``imu_state()``
+gives the true inertial state of the root body (the torso, whose frame is the robot's: x
+forward, y left, z up for the OP3): its orientation, its angular velocity in its own frame (the
+free joint's rotational velocity, which MuJoCo keeps in the body frame) and the specific force an
+accelerometer at the root body's origin measures, ``R^T (a - g)``, with ``a`` the free joint's
+linear acceleration (world frame) of the last physics step.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from robot_rise.errors import ConfigError
 from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture, posture_from_qpos, stand_posture
 
-__all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "MujocoTwin"]
+__all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "TwinImuState", "MujocoTwin"]
 
 log = logging.getLogger(__name__)
 
@@ -93,6 +100,24 @@ class TwinState:
         asks for the feet-only contact and a hold time, which one instant cannot show)."""
         return (self.tilt_rad <= STAND_MAX_TILT_RAD
                 and self.torso_height_m >= STAND_MIN_HEIGHT_FRACTION * self.stand_height_m)
+
+
+@dataclass(frozen=True)
+class TwinImuState:
+    """The true inertial state of the root body (read by the mock bus's IMU).
+
+    Attributes:
+        t_s: simulated time [s].
+        quat_wxyz: root body orientation in the world (w, x, y, z).
+        angular_velocity_rad_s: root body angular velocity in the root body frame [rad/s], 3 values.
+        specific_force_m_s2: ``R^T (a - g)`` at the root body origin, root body frame [m/s^2],
+            3 values (+9.81 along the body's z at rest upright).
+    """
+
+    t_s: float
+    quat_wxyz: tuple[float, float, float, float]
+    angular_velocity_rad_s: tuple[float, float, float]
+    specific_force_m_s2: tuple[float, float, float]
 
 
 class MujocoTwin:
@@ -179,6 +204,20 @@ class MujocoTwin:
             torso_height_m=float(d.site_xpos[self._torso_site][2]) - sole_z,
             stand_height_m=self.robot.stand_height_m,
         )
+
+    def imu_state(self) -> TwinImuState:
+        """The root body's orientation, angular velocity and specific force now (true values)."""
+        m, d = self.model, self.data
+        root_q = self.index.qpos_root
+        root_v = self.index.qvel_root
+        quat = d.qpos[root_q[3:7]]
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, quat / np.linalg.norm(quat))
+        rot = mat.reshape(3, 3)  # body to world
+        force = rot.T @ (d.qacc[root_v[:3]] - m.opt.gravity)
+        w = d.qvel[root_v[3:6]]
+        return TwinImuState(float(d.time), (float(quat[0]), float(quat[1]), float(quat[2]), float(quat[3])),
+                            (float(w[0]), float(w[1]), float(w[2])), (float(force[0]), float(force[1]), float(force[2])))
 
     # ---- the Plant protocol -------------------------------------------------------------
     def advance_joints(self, dt_s: float, commands: Mapping[str, ServoCommandLike]) -> dict[str, TwinMotion]:

@@ -1,0 +1,148 @@
+"""Get-up strategies as robot-independent data: keyframes in joint roles, read from versioned files and mapped onto a robot.
+
+A strategy file (format ``robot-rise/strategy@1``, JSON) holds one get-up motion as people wrote
+it: the lying kind it starts from, the lying posture and keyframes as role values
+(:mod:`robot_rise.roles`: "left.knee" = 1.0 flexes the left knee one radian on every robot), which
+keyframe ends the lying-to-sitting phase, and whether the timing is to be found in simulation.
+The shipped strategies live in ``configs/strategies``; ``robot-rise library build`` adapts them to
+a robot (:func:`joint_keyframes`), then times, proves and writes them.
+
+A role the robot lacks is skipped (Bez1 has no shoulder roll); joints with no role (``extra``)
+hold their standing angle.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from robot_rise.errors import ConfigError, FormatError
+from robot_rise.library.motions import LYING_KINDS
+from robot_rise.model import Robot
+from robot_rise.paths import configs_dir
+from robot_rise.roles import EXTRA, ROLES
+
+__all__ = ["STRATEGY_FORMAT", "Strategy", "RoleKeyframe", "read_strategy", "load_strategies", "default_strategies_dir", "joint_keyframes"]
+
+STRATEGY_FORMAT = "robot-rise/strategy@1"
+
+
+@dataclass(frozen=True)
+class RoleKeyframe:
+    """Role values reached at ``t_s`` [s]; roles not named keep the previous keyframe's value."""
+
+    t_s: float
+    roles: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Strategy:
+    """One get-up strategy (see the module docstring). Times are a shape; most are found in simulation."""
+
+    name: str
+    lying: str
+    description: str
+    lying_roles: Mapping[str, float]
+    keyframes: tuple[RoleKeyframe, ...]
+    connect_keyframe: int
+    lying_yaw_rad: float = 0.0
+    retime: bool = True
+    clamp_lead: bool = False
+
+
+def default_strategies_dir() -> Path:
+    return configs_dir() / "strategies"
+
+
+def _roles(obj: object, where: str) -> dict[str, float]:
+    if not isinstance(obj, dict):
+        raise FormatError(f"{where}: expected an object of role: value")
+    bad = [r for r in obj if r not in ROLES]
+    if bad:
+        raise FormatError(f"{where}: unknown roles {', '.join(bad)}")
+    try:
+        return {str(k): float(v) for k, v in obj.items()}
+    except (TypeError, ValueError) as e:
+        raise FormatError(f"{where}: role values must be numbers ({e})") from e
+
+
+def read_strategy(path: str | os.PathLike[str]) -> Strategy:
+    """Read and validate one strategy file.
+
+    Raises:
+        FormatError: unreadable, wrong format string, or a malformed field (named).
+    """
+    p = Path(path)
+    try:
+        obj = json.loads(p.read_text())
+    except (OSError, ValueError) as e:
+        raise FormatError(f"{p}: cannot read strategy: {e}") from e
+    if not isinstance(obj, dict) or obj.get("format") != STRATEGY_FORMAT:
+        raise FormatError(f"{p}: format is {obj.get('format') if isinstance(obj, dict) else None!r}, expected {STRATEGY_FORMAT!r}")
+    try:
+        lying = str(obj["lying"])
+        if lying not in LYING_KINDS:
+            raise FormatError(f"{p}: lying {lying!r} is not one of {', '.join(LYING_KINDS)}")
+        kfs = []
+        last = 0.0
+        for i, k in enumerate(obj["keyframes"]):
+            t = float(k["t_s"])
+            if t <= last:
+                raise FormatError(f"{p}: keyframe {i}: times must increase ({t} after {last})")
+            last = t
+            kfs.append(RoleKeyframe(t, _roles(k["roles"], f"{p}: keyframe {i}")))
+        connect = int(obj["connect_keyframe"])
+        if not 0 <= connect < len(kfs):
+            raise FormatError(f"{p}: connect_keyframe {connect} is not a keyframe index (0..{len(kfs) - 1})")
+        return Strategy(
+            name=str(obj.get("name", p.stem)),
+            lying=lying,
+            description=str(obj.get("description", "")),
+            lying_roles=_roles(obj["lying_roles"], f"{p}: lying_roles"),
+            keyframes=tuple(kfs),
+            connect_keyframe=connect,
+            lying_yaw_rad=float(obj.get("lying_yaw_rad", 0.0)),
+            retime=bool(obj.get("retime", True)),
+            clamp_lead=bool(obj.get("clamp_lead", False)),
+        )
+    except (KeyError, TypeError, ValueError) as e:
+        raise FormatError(f"{p}: malformed strategy: missing or bad {e}") from e
+
+
+def load_strategies(directory: str | os.PathLike[str] | None = None) -> tuple[Strategy, ...]:
+    """Every strategy of a directory (default: the shipped ones), in the order of its ``index.json``
+    list if there is one, else by file name."""
+    root = Path(directory) if directory is not None else default_strategies_dir()
+    if not root.is_dir():
+        raise ConfigError(f"strategy directory {root} does not exist")
+    order_file = root / "index.json"
+    if order_file.is_file():
+        try:
+            names = [str(n) for n in json.loads(order_file.read_text())["strategies"]]
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise FormatError(f"{order_file}: expected {{\"strategies\": [names]}}: {e}") from e
+        paths = [root / f"{n}.json" for n in names]
+    else:
+        paths = sorted(p for p in root.glob("*.json"))
+    return tuple(read_strategy(p) for p in paths)
+
+
+def joint_keyframes(strategy: Strategy, robot: Robot) -> tuple[dict[str, float], tuple[tuple[float, dict[str, float]], ...]]:
+    """The strategy on a robot: lying joint angles and keyframes as (time, joint goals) [rad].
+
+    Joints with no role hold their standing angle in the lying posture; roles the robot lacks are
+    dropped.
+
+    Raises:
+        ConfigError: the robot has no joint roles (``[roles]`` in robot.toml).
+    """
+    if robot.roles is None:
+        raise ConfigError(f"robot {robot.name} has no joint roles", hint="add [roles] to robot.toml (robot-rise robot import writes them)")
+    stand = dict(zip(robot.joint_names, robot.stand_qpos[7:]))
+    held = {j.joint: float(stand[j.joint]) for j in robot.roles.joints if j.role == EXTRA}
+    lying = held | robot.roles.joint_goals(strategy.lying_roles)
+    keyframes = tuple((k.t_s, robot.roles.joint_goals(k.roles)) for k in strategy.keyframes)
+    return lying, keyframes
