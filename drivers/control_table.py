@@ -330,8 +330,41 @@ _TABLES: dict[str, ControlTable] = {
             current_unit_a=None, operating_modes=frozenset({1, 3, 4, 16}),
             stall_torque_nm=2.5, no_load_rpm=55,
         ),
+        # Model numbers: ROBOTIS e-manual control tables (XH430-W350 1000, XH540-W270 1100,
+        # MX-64(2.0) 311 = 0x0137, MX-106(2.0) 321 = 0x0141; the DYNAMIXEL SDK's model lists agree).
+        # Current units: XH430 1.34 mA, XH540 2.69 mA, MX(2.0) 3.36 mA; figures at 12 V as in the catalog.
+        _table(
+            "XH430-W350", 1000,
+            defaults={"current_limit": 648, "goal_current": 648, "position_p_gain": 900,
+                      "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00134, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=3.4, no_load_rpm=30,
+        ),
+        _table(
+            "XH540-W270", 1100,
+            defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 800,
+                      "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=9.9, no_load_rpm=39,
+        ),
+        _table(
+            "MX-64(2.0)", 311,
+            defaults={"current_limit": 1941, "goal_current": 1941, "position_p_gain": 850,
+                      "velocity_limit": 285, "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00336, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=6.0, no_load_rpm=63,
+        ),
+        _table(
+            "MX-106(2.0)", 321,
+            defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 850,
+                      "velocity_limit": 210, "velocity_i_gain": 1920, "velocity_p_gain": 100},
+            current_unit_a=0.00336, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
+            stall_torque_nm=8.4, no_load_rpm=45,
+        ),
     )
 }
+# the servo catalog's names for the Protocol 2.0 firmware of the MX series
+_ALIASES = {"MX-28": "MX-28(2.0)", "MX-64": "MX-64(2.0)", "MX-106": "MX-106(2.0)"}
 
 SUPPORTED_MODELS: tuple[str, ...] = tuple(_TABLES)
 
@@ -343,7 +376,7 @@ def control_table(model: str) -> ControlTable:
         ControlTableError: unknown model (the message lists the supported ones).
     """
     try:
-        return _TABLES[model]
+        return _TABLES[_ALIASES.get(model, model)]
     except KeyError:
         raise ControlTableError(
             f"unknown servo model {model!r}", hint="supported models: " + ", ".join(SUPPORTED_MODELS)

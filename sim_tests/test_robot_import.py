@@ -213,3 +213,35 @@ def test_no_joint_name_of_any_robot_appears_in_the_product_code() -> None:
         hits += [f"{f.relative_to(root)}: {n}" for n in names if re.search(rf"\b{re.escape(n)}\b", text)]
     assert not hits
     assert all("." in r for r in ROLES)
+
+
+@needs_shared
+def test_an_imported_robot_goes_through_sample_check_report_and_the_twin(imported, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Issue 15: the commands take --robot DIR for an imported robot (the HTML report names it)."""
+    from robot_rise.trajectory import Trajectory, write_trajectory
+
+    result, robot = imported["bez1"]
+    rd = str(result.directory)
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "robot_rise", *args], capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
+
+    r = run("sample", "--robot", rd, "--n", "1", "--kind", "left", "--seed", "3", "--out", str(tmp_path / "postures"))
+    assert r.returncode == 0, r.stderr
+    posture = next((tmp_path / "postures").glob("*.json"))
+    assert '"robot": "bez1"' in posture.read_text().replace("  ", " ")
+    start = stand_posture(robot)
+    q = start.joint_vector(robot.joint_names)
+    t = np.arange(0.0, 0.5, 0.01)
+    hold = tmp_path / "hold.json"
+    write_trajectory(hold, Trajectory(robot.name, robot.joint_names, t, np.tile(q, (len(t), 1)), start))
+    r = run("check", str(hold), "--robot", rd, "--variants", "2")
+    assert r.returncode == 0 and "PROVEN" in r.stdout, r.stdout + r.stderr
+    r = run("report", str(hold), "--robot", rd, "--out", str(tmp_path / "rep"), "--no-video")
+    assert r.returncode == 0, r.stderr
+    assert "<h1>bez1" in (tmp_path / "rep" / "report.html").read_text()
+    r = run("execute", str(hold), "--mock", "--twin", "--robot", rd, "--allow-unproven", "--yes")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "upright" in r.stdout and "safety-clamped cycles 0" in r.stdout
+    # the servo catalog's MX-28 is the bus's MX-28(2.0): one turn of limits at most
+    assert all(-3.1416 < s.lower < s.upper < 3.1416 for s in robot.servos)

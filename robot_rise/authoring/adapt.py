@@ -34,7 +34,13 @@ class _Statics:
         self.d = mujoco.MjData(self.m)
         self.idx = model_index(self.m, robot)
         self.soles = [mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
+        # a foot is everything from the ankle pitch joint down (the link between the ankle joints too)
         self.feet = {int(self.m.site_bodyid[s]) for s in self.soles}
+        if robot.roles is not None:
+            for side in ("left", "right"):
+                ankle = robot.roles.by_role().get(f"{side}.ankle_pitch")
+                if ankle is not None:
+                    self.feet.add(int(self.m.jnt_bodyid[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, ankle.joint)]))
         root = self.idx.root_body
         self.foot_geoms = np.array([g for g in range(self.m.ngeom) if self._in_feet(int(self.m.geom_bodyid[g]))], dtype=int)
         self.other_geoms = np.array([g for g in range(self.m.ngeom) if g not in set(self.foot_geoms.tolist()) and self.m.geom_bodyid[g] != 0], dtype=int)
@@ -83,12 +89,16 @@ class _Statics:
         return float(self.d.subtree_com[self.root][0] - mid[0])
 
 
-def balance_on_feet(robot: Robot, keyframes: tuple[tuple[float, Mapping[str, float]], ...], start: Mapping[str, float]) -> tuple[tuple[tuple[float, dict[str, float]], ...], list[str]]:
+def balance_on_feet(
+    robot: Robot, keyframes: tuple[tuple[float, Mapping[str, float]], ...], start: Mapping[str, float], *, from_keyframe: int = 0
+) -> tuple[tuple[tuple[float, dict[str, float]], ...], list[str]]:
     """Lean each on-its-feet keyframe so the centre of mass is over the feet (see the module docstring).
 
     Args:
         keyframes: (time, joint goals) as a strategy maps onto the robot; goals not named hold.
         start: the joint angles before the first keyframe.
+        from_keyframe: keyframes before this one are left alone (the lying-to-sitting phase, where
+            soles flat on the ground would be a posture the robot is not in).
 
     Returns:
         the keyframes with leaned hip and ankle pitch goals, and a note per changed keyframe.
@@ -111,7 +121,7 @@ def balance_on_feet(robot: Robot, keyframes: tuple[tuple[float, Mapping[str, flo
         q = np.clip(q, robot.joint_lower, robot.joint_upper)
         st.place(q)
         new_goals = dict(goals)
-        if st.lowest(st.other_geoms) > FEET_ONLY_CLEARANCE_M:
+        if i >= from_keyframe and st.lowest(st.other_geoms) > FEET_ONLY_CLEARANCE_M:
 
             def leaned(lean: float) -> np.ndarray:
                 ql = q.copy()

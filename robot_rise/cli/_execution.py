@@ -148,7 +148,11 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
         executor.prepare(traj.joint_names, traj.t, traj.q, fb.position_rad)  # refuses a far start
         duration = float(traj.t[-1] - traj.t[0]) / config.speed
         if not config.yes:
-            answer = input(f"stream {duration:.1f} s of motion to {len(smap)} servos on {conn.url}? [y/N] ")
+            try:
+                answer = input(f"stream {duration:.1f} s of motion to {len(smap)} servos on {conn.url}? [y/N] ")
+            except EOFError:  # no terminal to ask (a pipe, CI): the answer is no
+                answer = ""
+                print("\nno answer (stdin closed); pass --yes to run without asking")
             if answer.strip().lower() not in ("y", "yes"):
                 print("aborted; nothing moved")
                 return 2

@@ -34,7 +34,8 @@ def robot_library_dir(robot: Robot) -> Path:
     directory if there is one (an imported robot's own ``motions``), else the shipped
     ``configs/motions/<library>``."""
     own = robot.directory / robot.library
-    return own if own.is_dir() else default_library_dir(robot.library)
+    shipped = default_library_dir(robot.library)
+    return shipped if not own.is_dir() and shipped.is_dir() else own
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,9 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
     try:
         obj = json.loads(path.read_text())
     except FileNotFoundError:
-        raise FormatError(f"{path}: no motion library index", hint="regenerate with: robot-rise library author") from None
+        raise FormatError(
+            f"{path}: no motion library index", hint="build the robot's library: robot-rise library --robot ROBOT_DIR build (the shipped OP3's: library author)"
+        ) from None
     except json.JSONDecodeError as e:
         raise FormatError(f"{path}: not valid JSON ({e})") from None
     if not isinstance(obj, dict) or obj.get("format") != LIBRARY_FORMAT:

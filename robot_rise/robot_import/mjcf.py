@@ -36,6 +36,7 @@ SOLE_SITE = "robot_rise_{side}_sole"
 TORSO_SITE = "robot_rise_torso"
 STAND_CHECK_S = 2.0  # a found standing posture must be held this long by the servo model
 ASSET_DIR = "assets"
+POSITION_MODE_HALF_TURN_RAD = 3.14  # within +-pi, one tick clear of the wrap (4096 ticks per turn)
 
 
 @dataclass(frozen=True)
@@ -147,6 +148,11 @@ def _ranges(
             missing.append(name)
     if missing:
         raise ConfigError(f"{path}: no joint limit known for {', '.join(missing)}", hint="give them min/max in a servo map (--servos) or a range in the model")
+    for name, (lo, hi) in out.items():  # a servo in position mode turns less than one revolution
+        clipped = (max(lo, -POSITION_MODE_HALF_TURN_RAD), min(hi, POSITION_MODE_HALF_TURN_RAD))
+        if clipped != (lo, hi):
+            out[name] = clipped
+            notes.append(f"{name}: range [{lo:.4f}, {hi:.4f}] is more than a position-mode servo turns; kept [{clipped[0]:.4f}, {clipped[1]:.4f}]")
     return out, notes
 
 
