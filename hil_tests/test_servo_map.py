@@ -62,7 +62,9 @@ def test_that_index_of_maps_trajectory_columns_and_names_missing_joints(servo_ma
 
 
 def test_that_each_model_has_its_control_table_and_model_number() -> None:
-    assert set(SUPPORTED_MODELS) == {"XM430-W350", "XL430-W250", "XM540-W270", "MX-28(2.0)"}
+    assert set(SUPPORTED_MODELS) == {"XM430-W350", "XL430-W250", "XM540-W270", "MX-28(2.0)", "XH430-W350", "XH540-W270", "MX-64(2.0)", "MX-106(2.0)"}
+    assert {t.model_number for t in map(control_table, SUPPORTED_MODELS)} == {1020, 1060, 1120, 30, 1000, 1100, 311, 321}
+    assert control_table("MX-106") is control_table("MX-106(2.0)")  # the servo catalog's name for it
     for model in SUPPORTED_MODELS:
         t = control_table(model)
         assert t["goal_position"].address == 116 and t["present_position"].address == 132
