@@ -245,3 +245,80 @@ def test_an_imported_robot_goes_through_sample_check_report_and_the_twin(importe
     assert "upright" in r.stdout and "safety-clamped cycles 0" in r.stdout
     # the servo catalog's MX-28 is the bus's MX-28(2.0): one turn of limits at most
     assert all(-3.1416 < s.lower < s.upper < 3.1416 for s in robot.servos)
+
+
+_MINI_URDF = """<?xml version="1.0"?>
+<robot name="mini">
+  <link name="torso"><inertial><mass value="1.0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.1"/><geometry><box size="0.1 0.16 0.2"/></geometry></collision></link>
+  <link name="head"><inertial><mass value="0.1"/><inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.04"/><geometry><sphere radius="0.04"/></geometry></collision></link>
+  <joint name="neck_yaw" type="revolute"><parent link="torso"/><child link="head"/><origin xyz="0 0 0.22"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="3" velocity="5"/></joint>
+  
+  <link name="a_thigh"><inertial><origin xyz="0 0 -0.06"/><mass value="0.2"/><inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.06"/><geometry><cylinder radius="0.02" length="0.1"/></geometry></collision></link>
+  <link name="a_hipr"><inertial><mass value="0.05"/><inertia ixx="0.0001" iyy="0.0001" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="a_shank"><inertial><origin xyz="0 0 -0.06"/><mass value="0.15"/><inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.06"/><geometry><cylinder radius="0.018" length="0.1"/></geometry></collision></link>
+  <link name="a_foot"><inertial><origin xyz="0.01 0 -0.02"/><mass value="0.1"/><inertia ixx="0.0002" iyy="0.0002" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0.015 0 -0.025"/><geometry><box size="0.12 0.07 0.01"/></geometry></collision></link>
+  <link name="a_upperarm"><inertial><origin xyz="0 0 -0.05"/><mass value="0.08"/><inertia ixx="0.0003" iyy="0.0003" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.05"/><geometry><cylinder radius="0.015" length="0.08"/></geometry></collision></link>
+  <link name="a_forearm"><inertial><origin xyz="0 0 -0.05"/><mass value="0.06"/><inertia ixx="0.0003" iyy="0.0003" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.05"/><geometry><cylinder radius="0.013" length="0.08"/></geometry></collision></link>
+  <joint name="a_hr" type="revolute"><parent link="torso"/><child link="a_hipr"/><origin xyz="0 0.045 -0.02"/><axis xyz="1 0 0"/><limit lower="-0.5" upper="0.5" effort="3" velocity="5"/></joint>
+  <joint name="a_hp" type="revolute"><parent link="a_hipr"/><child link="a_thigh"/><origin xyz="0 0 0"/><axis xyz="0 1 0"/><limit lower="-2.0" upper="0.5" effort="3" velocity="5"/></joint>
+  <joint name="a_kn" type="revolute"><parent link="a_thigh"/><child link="a_shank"/><origin xyz="0 0 -0.12"/><axis xyz="0 1 0"/><limit lower="0" upper="2.5" effort="3" velocity="5"/></joint>
+  <joint name="a_ap" type="revolute"><parent link="a_shank"/><child link="a_foot"/><origin xyz="0 0 -0.12"/><axis xyz="0 1 0"/><limit lower="-1.2" upper="1.2" effort="3" velocity="5"/></joint>
+  <joint name="a_sp" type="revolute"><parent link="torso"/><child link="a_upperarm"/><origin xyz="0 0.1 0.18"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="3" velocity="5"/></joint>
+  <joint name="a_el" type="revolute"><parent link="a_upperarm"/><child link="a_forearm"/><origin xyz="0 0 -0.1"/><axis xyz="0 1 0"/><limit lower="-2.5" upper="0" effort="3" velocity="5"/></joint>
+
+  <link name="b_thigh"><inertial><origin xyz="0 0 -0.06"/><mass value="0.2"/><inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.06"/><geometry><cylinder radius="0.02" length="0.1"/></geometry></collision></link>
+  <link name="b_hipr"><inertial><mass value="0.05"/><inertia ixx="0.0001" iyy="0.0001" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="b_shank"><inertial><origin xyz="0 0 -0.06"/><mass value="0.15"/><inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.06"/><geometry><cylinder radius="0.018" length="0.1"/></geometry></collision></link>
+  <link name="b_foot"><inertial><origin xyz="0.01 0 -0.02"/><mass value="0.1"/><inertia ixx="0.0002" iyy="0.0002" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0.015 0 -0.025"/><geometry><box size="0.12 0.07 0.01"/></geometry></collision></link>
+  <link name="b_upperarm"><inertial><origin xyz="0 0 -0.05"/><mass value="0.08"/><inertia ixx="0.0003" iyy="0.0003" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.05"/><geometry><cylinder radius="0.015" length="0.08"/></geometry></collision></link>
+  <link name="b_forearm"><inertial><origin xyz="0 0 -0.05"/><mass value="0.06"/><inertia ixx="0.0003" iyy="0.0003" izz="0.0001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.05"/><geometry><cylinder radius="0.013" length="0.08"/></geometry></collision></link>
+  <joint name="b_hr" type="revolute"><parent link="torso"/><child link="b_hipr"/><origin xyz="0 -0.045 -0.02"/><axis xyz="1 0 0"/><limit lower="-0.5" upper="0.5" effort="3" velocity="5"/></joint>
+  <joint name="b_hp" type="revolute"><parent link="b_hipr"/><child link="b_thigh"/><origin xyz="0 0 0"/><axis xyz="0 1 0"/><limit lower="-2.0" upper="0.5" effort="3" velocity="5"/></joint>
+  <joint name="b_kn" type="revolute"><parent link="b_thigh"/><child link="b_shank"/><origin xyz="0 0 -0.12"/><axis xyz="0 1 0"/><limit lower="0" upper="2.5" effort="3" velocity="5"/></joint>
+  <joint name="b_ap" type="revolute"><parent link="b_shank"/><child link="b_foot"/><origin xyz="0 0 -0.12"/><axis xyz="0 1 0"/><limit lower="-1.2" upper="1.2" effort="3" velocity="5"/></joint>
+  <joint name="b_sp" type="revolute"><parent link="torso"/><child link="b_upperarm"/><origin xyz="0 -0.1 0.18"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="3" velocity="5"/></joint>
+  <joint name="b_el" type="revolute"><parent link="b_upperarm"/><child link="b_forearm"/><origin xyz="0 0 -0.1"/><axis xyz="0 1 0"/><limit lower="-2.5" upper="0" effort="3" velocity="5"/></joint>
+
+</robot>
+"""
+
+
+def test_a_urdf_robot_imports_with_a_floating_base_added(tmp_path: Path) -> None:
+    """A robot we never saw, as URDF (no floating joint in URDF): legs with pitch joints only,
+    pitch-only arms, a head with pan only."""
+    src = tmp_path / "mini.urdf"
+    src.write_text(_MINI_URDF)
+    result = import_robot(src, tmp_path / "mini", servo_models={"*": "XL430-W250"})
+    robot = load_robot(result.directory)
+    assert any("free joint added" in n for n in result.notes)
+    have = robot.roles.by_role()
+    assert {"left.hip_roll", "left.hip_pitch", "left.knee", "left.ankle_pitch", "left.shoulder_pitch", "left.elbow", "head.pan"} <= set(have)
+    assert "left.ankle_roll" in robot.roles.missing_roles()
+    assert have["left.knee"].joint == "a_kn" and have["right.knee"].joint == "b_kn"  # +y is left
+    assert robot.stand_height_m > 0.2
+
+
+def test_xacro_needs_xacrodoc_and_says_so(tmp_path: Path) -> None:
+    import importlib.util
+
+    src = tmp_path / "robot.urdf.xacro"
+    src.write_text('<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="x"/>')
+    if importlib.util.find_spec("xacrodoc") is None:
+        with pytest.raises(ConfigError, match="needs the xacrodoc package"):
+            import_robot(src, tmp_path / "x", servo_models={"*": "XL430-W250"})
+    else:
+        with pytest.raises(ConfigError):  # expands, then has no hinge joints
+            import_robot(src, tmp_path / "x", servo_models={"*": "XL430-W250"})
+    assert not (tmp_path / "x").exists()

@@ -79,5 +79,5 @@ def run_import(args: argparse.Namespace) -> int:
     result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name, force=args.force)
     for note in result.notes:
         print(f"  {note}")
-    print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library build --robot {result.directory})")
+    print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library --robot {result.directory} build)")
     return 0
