@@ -60,6 +60,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_CANDIDATES = 3  # library motions tried, nearest first
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
+DEFAULT_CANDIDATE_RANK = "duration"  # the quickest expected get-up first, the nearest next (issue 17; connection_candidates)
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
@@ -229,6 +230,7 @@ def rise(
     context: RiseContext | None = None,
     retries: int = DEFAULT_RETRIES,
     robustness: tuple[ModelVariant, ...] = (),
+    candidate_rank: str = DEFAULT_CANDIDATE_RANK,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -250,6 +252,9 @@ def rise(
             report's ``robustness`` says which check it failed).
         retries: when every candidate fails but the robot ends lying at rest, rise again from
             there this many times (the combined motion is proven from the original start).
+        candidate_rank: ``"duration"`` tries first the motion with the shortest expected get-up
+            (approach + rest of the motion), ``"distance"`` the nearest (paper 000);
+            :func:`robot_rise.library.connection_candidates`.
 
     Raises:
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
@@ -273,7 +278,7 @@ def rise(
     attempts: list[RiseAttempt] = []
     best_unproven: FilterResult | None = None
     best_proven: RiseResult | None = None
-    for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree):
+    for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         try:
@@ -339,7 +344,7 @@ def rise(
     if retries > 0 and best_unproven is not None:
         recovered = _rise_again_from_where_it_fell(
             robot, best_unproven, scene=scene, seed=seed, budget_s=budget_s, candidates=candidates,
-            filter_config=filter_config, progress=progress, context=context, retries=retries - 1,
+            filter_config=filter_config, progress=progress, context=context, retries=retries - 1, candidate_rank=candidate_rank,
         )
         if recovered is not None:
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
@@ -359,6 +364,7 @@ def _rise_again_from_where_it_fell(
     progress: Callable[[str], None] | None,
     context: RiseContext,
     retries: int,
+    candidate_rank: str = DEFAULT_CANDIDATE_RANK,
 ) -> RiseResult | None:
     """A failed get-up that ends lying at rest is followed by a new rise from where it lies.
 
@@ -378,7 +384,7 @@ def _rise_again_from_where_it_fell(
     log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
     again = rise(
         robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, filter_config=filter_config,
-        progress=progress, context=context, retries=retries,
+        progress=progress, context=context, retries=retries, candidate_rank=candidate_rank,
     )
     if not again.proven or again.trajectory is None:
         return None

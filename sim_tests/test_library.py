@@ -308,3 +308,34 @@ def test_reprove_library_refuses_a_start_more_than_two_ticks_past_a_limit(tmp_pa
     _unproven_copy_with_start_past_a_limit(tmp_path / "lib", "left_tip_forward", "l_sho_roll", 3.2e-3)
     with pytest.raises(PostureError, match="l_sho_roll"):
         reprove_library(tmp_path / "lib", ROBOT)
+
+
+def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> None:
+    """Issue 17: connecting candidates ranked by expected get-up time (approach + rest of the motion)."""
+    from robot_rise.library import connection_candidates
+    from robot_rise.library.selection import MAX_ROOT_TURN_RAD, expected_getup_s
+
+    index = FrameIndex.build(LIBRARY, ROBOT)
+    for name in ("prone_knees_first", "supine_backroll_kneel", "left_tip_forward"):
+        start = LIBRARY.get(name).start
+        by_time = connection_candidates(LIBRARY, ROBOT, start, 3, index=index, rank="duration")
+        by_distance = connection_candidates(LIBRARY, ROBOT, start, 3, index=index, rank="distance")
+        expected, turn = expected_getup_s(index, LIBRARY, ROBOT, start)
+        rows = {(index.motion_names[index.motion_id[i]], int(index.frame[i])): i for i in range(index.size)}
+        first = rows[(by_time[0].motion, by_time[0].frame)]
+        assert turn[first] <= MAX_ROOT_TURN_RAD
+        # the quickest of the motions' nearest reachable frames comes first
+        q, jw = index.query_features(start.root_quat_wxyz, start.joint_vector(ROBOT.joint_names))
+        d = index.distances(q, jw)
+        per_motion = []
+        for mid in range(len(index.motion_names)):
+            r = np.flatnonzero((index.motion_id == mid) & (turn <= MAX_ROOT_TURN_RAD))
+            if r.size:
+                per_motion.append(float(expected[r[np.argmin(d[r])]]))
+        assert expected[first] == pytest.approx(min(per_motion))
+        assert expected[first] >= LIBRARY.get(by_time[0].motion).trajectory.duration_s - by_time[0].time_s
+        # the nearest is tried first or second; no motion twice; as many candidates as by distance
+        assert (by_distance[0].motion, by_distance[0].frame) in [(c.motion, c.frame) for c in by_time[:2]]
+        assert len({c.motion for c in by_time}) == len(by_time) == len(by_distance)
+    with pytest.raises(ValueError, match="rank"):
+        connection_candidates(LIBRARY, ROBOT, LIBRARY.motions[0].start, 1, index=index, rank="fastest")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_rise.constants import JOINT_ACCEL_LIMIT_RAD_S2, JOINT_SPEED_FRACTION_OF_NO_LOAD, ROOT_ANGULAR_SPEED_LIMIT_RAD_S
 from robot_rise.library.frames import Connection, FrameIndex
 from robot_rise.library.motions import MotionLibrary, load_library, robot_library_dir
 from robot_rise.library.tree import KMeansTree
@@ -20,11 +21,15 @@ from robot_rise.placement import place_near
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["LYING_ROOT_RISE_M", "lying_frames", "connection_candidates", "connecting_posture", "select_connecting_posture"]
+__all__ = ["LYING_ROOT_RISE_M", "MAX_ROOT_TURN_RAD", "lying_frames", "connection_candidates", "expected_getup_s", "connecting_posture", "select_connecting_posture"]
 
 log = logging.getLogger(__name__)
 
 LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is this close to the start's height
+MAX_ROOT_TURN_RAD = 0.6  # duration ranking: frames whose root is turned further from the start's are out of a plan's reach
+# Planned approaches take 1.8-4.4x (median 2.3x) the straight-line trapezoid (6 rises, seed 1):
+# the path bends around the body and the filter slows what the servos cannot follow.
+APPROACH_TIME_FACTOR = 2.5
 
 
 def lying_frames(index: FrameIndex, library: MotionLibrary, *, max_rise_m: float = LYING_ROOT_RISE_M) -> FrameIndex:
@@ -50,29 +55,83 @@ def lying_frames(index: FrameIndex, library: MotionLibrary, *, max_rise_m: float
 
 
 def connection_candidates(
-    library: MotionLibrary, robot: Robot, start: Posture, k: int, *, index: FrameIndex | None = None, tree: KMeansTree | None = None
+    library: MotionLibrary,
+    robot: Robot,
+    start: Posture,
+    k: int,
+    *,
+    index: FrameIndex | None = None,
+    tree: KMeansTree | None = None,
+    rank: str = "distance",
 ) -> list[Connection]:
-    """The nearest frame of the ``k`` nearest motions (paper 000 eq. 1), nearest first.
+    """Connecting frames of ``k`` motions, best first.
 
-    The very nearest comes from the K-means tree (paper 000 section 4.1); the runners-up per
-    motion from the same frame index.
+    ``rank="distance"``: the nearest frame of the ``k`` nearest motions (paper 000 eq. 1); the very
+    nearest comes from the K-means tree (paper 000 section 4.1), the runners-up per motion from the
+    same frame index. ``rank="duration"``: per motion, its nearest frame among those whose root is
+    within ``MAX_ROOT_TURN_RAD`` of the start's (a plan moves the joints, not the body); motions
+    ordered by the expected get-up through that frame (:func:`expected_getup_s`: the approach at the
+    servos' speed plus the rest of the motion; issue 17: join the library where it pays), the
+    nearest frame overall kept as the runner-up.
     """
     index = index or FrameIndex.build(library, robot)
-    tree = tree or KMeansTree(index)
     joints = start.joint_vector(robot.joint_names)
-    best = tree.query(start.root_quat_wxyz, joints)
     q, jw = index.query_features(start.root_quat_wxyz, joints)
     d = index.distances(q, jw)
-    out = [best]
+    if rank not in ("distance", "duration"):
+        raise ValueError(f"rank must be 'distance' or 'duration', not {rank!r}")
+    tree = tree or KMeansTree(index)
+    best = tree.query(start.root_quat_wxyz, joints)
+    by_distance = [best]
     for mid, name in enumerate(index.motion_names):
         if name == best.motion:
             continue
         rows = np.flatnonzero(index.motion_id == mid)
         if rows.size:
             i = int(rows[np.argmin(d[rows])])
-            out.append(index._connection(i, float(d[i]), int(rows.size)))
-    out[1:] = sorted(out[1:], key=lambda c: c.distance)
+            by_distance.append(index._connection(i, float(d[i]), int(rows.size)))
+    by_distance[1:] = sorted(by_distance[1:], key=lambda c: c.distance)
+    if rank == "distance":
+        return by_distance[:k]
+    expected, turn = expected_getup_s(index, library, robot, start)
+    scored = []
+    for mid in range(len(index.motion_names)):
+        rows = np.flatnonzero((index.motion_id == mid) & (turn <= MAX_ROOT_TURN_RAD))
+        if rows.size:
+            # the motion's nearest frame (a later frame's shorter rest did not pay: its longer
+            # approach failed or outlasted the estimate), the motions ordered by expected time
+            i = int(rows[np.argmin(d[rows])])
+            scored.append((float(expected[i]), index._connection(i, float(d[i]), int(rows.size))))
+    quickest = [c for _, c in sorted(scored, key=lambda x: x[0])]
+    # the nearest stays the runner-up (if the quickest fails, the safest next), then the quick ones,
+    # then the nearest of the rest
+    out: list[Connection] = []
+    for c in quickest[:1] + by_distance[:1] + quickest[1:] + by_distance[1:]:
+        if all((c.motion, c.frame) != (o.motion, o.frame) for o in out) and all(c.motion != o.motion for o in out):
+            out.append(c)
     return out[:k]
+
+
+def expected_getup_s(index: FrameIndex, library: MotionLibrary, robot: Robot, start: Posture) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: the expected get-up time from ``start`` through it [s], and the root turn to it [rad].
+
+    The approach takes the slowest joint's trapezoid at the planner's timing limits (speed
+    JOINT_SPEED_FRACTION_OF_NO_LOAD x no-load, acceleration JOINT_ACCEL_LIMIT_RAD_S2), or the root's
+    turn at its angular speed limit if longer; then the motion plays from that frame to its end.
+    """
+    v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * JOINT_SPEED_FRACTION_OF_NO_LOAD
+    a = JOINT_ACCEL_LIMIT_RAD_S2
+    frame_joints = index.joints_w / index.sqrt_w
+    dist = np.abs(frame_joints - start.joint_vector(robot.joint_names))
+    ramp = v * v / a  # distance covered accelerating to full speed and back
+    t_joint = np.where(dist > ramp, dist / v + v / a, 2.0 * np.sqrt(dist / a)).max(axis=1)
+    q = np.asarray(start.root_quat_wxyz, dtype=float)
+    q = q / np.linalg.norm(q)
+    c1, c2 = index.quat @ q, index.quat_z @ q
+    turn = 2.0 * np.arccos(np.minimum(np.sqrt(c1 * c1 + c2 * c2), 1.0))
+    t_root = turn / ROOT_ANGULAR_SPEED_LIMIT_RAD_S
+    remaining = np.array([library.get(index.motion_names[m]).trajectory.duration_s for m in index.motion_id]) - index.time_s
+    return APPROACH_TIME_FACTOR * np.maximum(t_joint, t_root) + remaining, turn
 
 
 def connecting_posture(library: MotionLibrary, robot: Robot, connection: Connection, start: Posture, checker: ValidityChecker) -> Posture:
