@@ -13,6 +13,7 @@ import numpy as np
 
 from robot_rise.filter import Proof
 from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.rise import DEFAULT_CANDIDATE_RANK
 from robot_rise.sampling import sample_lying
 from robot_rise.sim.variants import ModelVariant
 from robot_rise.validity import ValidityChecker
@@ -104,7 +105,7 @@ def _rise_case(args: tuple) -> RiseCase:
     from robot_rise.model import load_robot
     from robot_rise.rise import rise
 
-    robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials = args
+    robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials, rank = args
     key = (robot_dir, scene)
     if key not in _CONTEXTS:  # one per worker process: the robot, checker, library and tree
         from robot_rise.rise import RiseContext
@@ -114,7 +115,7 @@ def _rise_case(args: tuple) -> RiseCase:
     robot = context.robot
     t0 = _time.perf_counter()
     try:
-        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context)
+        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context, candidate_rank=rank)
     except Exception as e:  # a benchmark reports failures, it does not stop on them
         return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
     wall = _time.perf_counter() - t0
@@ -159,6 +160,7 @@ def bench_rise(
     variants: int = 0,
     noise_trials: int = 0,
     progress=None,
+    candidate_rank: str = DEFAULT_CANDIDATE_RANK,
 ) -> list[RiseCase]:
     """Rise from ``n_per_kind`` supine, prone and lateral (half left, half right) postures.
 
@@ -175,7 +177,7 @@ def bench_rise(
             continue
         sample = sample_lying(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
         for i, p in enumerate(sample.postures):
-            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness, variants, noise_trials))
+            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness, variants, noise_trials, candidate_rank))
     results: list[RiseCase] = []
     if jobs <= 1:
         for k, task in enumerate(tasks):
@@ -330,7 +332,7 @@ def bench_environments(
     for scene in scenes:
         cases = []
         for i, (kind, p) in enumerate(environment_postures(robot, scene, n, seed)):
-            cases.append(_rise_case((str(robot.directory), f"{scene}_{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, False)))
+            cases.append(_rise_case((str(robot.directory), f"{scene}_{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, False, 0, 0, DEFAULT_CANDIDATE_RANK)))
             done += 1
             if progress:
                 progress(done, total)
