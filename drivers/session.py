@@ -19,6 +19,7 @@ __all__ = ["Connection", "connect", "mock_bus_for", "mock_url_for"]
 
 if TYPE_CHECKING:
     from drivers.mockbus import JointPlant, MockBus, Plant
+    from drivers.mockbus.emulated_imu import EmulatedImu
 
 _log = logging.getLogger(__name__)
 _counter = itertools.count()
@@ -50,7 +51,7 @@ class Connection:
 
 def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
                  wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
-                 plant: "Plant | JointPlant | None" = None) -> "MockBus":
+                 plant: "Plant | JointPlant | None" = None, imu: "EmulatedImu | None" = None) -> "MockBus":
     """An emulated bus holding the servos of ``servo_map`` (at the map's baud rate).
 
     Args:
@@ -63,6 +64,8 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
             :class:`drivers.mockbus.Plant` in the servo frame, or a
             :class:`drivers.mockbus.JointPlant` (the physics twin), put on the bus through this
             map (:class:`drivers.mockbus.ServoFramePlant`).
+        imu: an OpenCR sub-controller on the bus (e.g. ``EmulatedImu()`` at ID 200), fed by the
+            plant's IMU hook (the physics twin) unless it has a source of its own; None: no IMU.
     """
     import drivers.mockbus as mb
 
@@ -74,17 +77,17 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
         init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
     return mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
                       clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
-                      initial_position_ticks=init, return_delay_units=return_delay_units)
+                      initial_position_ticks=init, return_delay_units=return_delay_units, imu=imu)
 
 
 def mock_url_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
                  wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
-                 plant: "Plant | JointPlant | None" = None) -> str:
+                 plant: "Plant | JointPlant | None" = None, imu: "EmulatedImu | None" = None) -> str:
     """Attach an emulated bus (see :func:`mock_bus_for`) and return its ``dxlsim://`` URL."""
     import drivers.mockbus as mb
 
     bus = mock_bus_for(servo_map, initial_rad=initial_rad, wire_timing=wire_timing, clock=clock,
-                       return_delay_units=return_delay_units, plant=plant)
+                       return_delay_units=return_delay_units, plant=plant, imu=imu)
     return mb.attach(f"{servo_map.robot or 'bus'}{next(_counter)}", bus)
 
 

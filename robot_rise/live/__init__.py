@@ -1,12 +1,27 @@
-"""Live operation on the robot: fall detection (and, later, posture estimation and the guard loop).
+"""Live operation on the robot: fall detection, where the body lies, the get-up loop and the guard.
 
 Pure code on SI samples; it talks to hardware only through interfaces the CLI wires to
 ``drivers`` (it never imports ``drivers`` itself).
 
 - :mod:`~robot_rise.live.fall`: standing / falling / fallen-and-still with the lying kind, from
   the IMU's gravity direction and gyro, in every direction.
+- :mod:`~robot_rise.live.estimate`: the whole lying posture from the joint angles and the IMU's
+  gravity direction (roll and pitch from gravity, position by settling the model).
+- :mod:`~robot_rise.live.getup`: the get-up loop (estimate, plan and prove, execute, confirm
+  standing, retry, give up limp) over the :class:`RobotIO` interface, the guard, and the push
+  benchmark.
 """
 
+from robot_rise.live.estimate import (
+    EstimateConfig,
+    EstimateError,
+    PostureEstimate,
+    PostureEstimator,
+    estimate_error,
+    estimate_posture,
+    root_quat_from_up,
+    up_of_quat,
+)
 from robot_rise.live.fall import (
     LYING_KINDS,
     FallConfig,
@@ -19,6 +34,36 @@ from robot_rise.live.fall import (
     lying_kind,
     new_tracker,
     step,
+)
+from robot_rise.live.getup import (
+    AttemptReport,
+    Confirmation,
+    ExecutionResult,
+    GetUpConfig,
+    GetUpPlanner,
+    GetUpReport,
+    GuardEvent,
+    GuardEventKind,
+    GuardState,
+    Health,
+    HealthLimits,
+    KeyframePlanner,
+    PlannedGetUp,
+    Pusher,
+    PushConfig,
+    PushOutcome,
+    RisePlanner,
+    RobotIO,
+    TruthSource,
+    confirm_standing,
+    get_up,
+    guard,
+    guard_step,
+    health_problems,
+    push_trials,
+    stop_safely,
+    summarize_pushes,
+    watch,
 )
 
 __all__ = [
@@ -33,4 +78,40 @@ __all__ = [
     "lying_kind",
     "new_tracker",
     "step",
+    "EstimateConfig",
+    "EstimateError",
+    "PostureEstimate",
+    "PostureEstimator",
+    "estimate_error",
+    "estimate_posture",
+    "root_quat_from_up",
+    "up_of_quat",
+    "AttemptReport",
+    "Confirmation",
+    "ExecutionResult",
+    "GetUpConfig",
+    "GetUpPlanner",
+    "GetUpReport",
+    "GuardEvent",
+    "GuardEventKind",
+    "GuardState",
+    "Health",
+    "HealthLimits",
+    "KeyframePlanner",
+    "PlannedGetUp",
+    "Pusher",
+    "PushConfig",
+    "PushOutcome",
+    "RisePlanner",
+    "RobotIO",
+    "TruthSource",
+    "confirm_standing",
+    "get_up",
+    "guard",
+    "guard_step",
+    "health_problems",
+    "push_trials",
+    "stop_safely",
+    "summarize_pushes",
+    "watch",
 ]

@@ -21,13 +21,18 @@ forward, y left, z up for the OP3): its orientation, its angular velocity in its
 free joint's rotational velocity, which MuJoCo keeps in the body frame) and the specific force an
 accelerometer at the root body's origin measures, ``R^T (a - g)``, with ``a`` the free joint's
 linear acceleration (world frame) of the last physics step.
+
+Disturbances (tests and the guard's push benchmark): ``push(force_world_n, duration_s)`` applies
+a constant force at the root body's centre of mass for that much simulated time from now, as a
+hand shoving the torso would.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -157,6 +162,8 @@ class MujocoTwin:
         self._pending_s = 0.0
         self.hold_start = hold_start
         self._holding = hold_start
+        self._push_force = np.zeros(3)
+        self._push_until_s = -np.inf
         self._torso_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.torso_site)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in robot.sole_sites]
         self.reset(start if start is not None else stand_posture(robot))
@@ -173,8 +180,22 @@ class MujocoTwin:
         self._holding = self.hold_start
         self._pwm[:] = 1.0
         self._pending_s = 0.0
+        self._push_until_s = -np.inf
         self._apply_servo_state()
         mujoco.mj_forward(m, d)
+
+    def push(self, force_world_n: Sequence[float], duration_s: float) -> None:
+        """Push the root body: ``force_world_n`` [N] (world frame, 3 values) at its centre of
+        mass for ``duration_s`` [s] of simulated time from now (the impulse is their product).
+
+        Raises:
+            ValueError: a non-finite force or a negative duration.
+        """
+        f = np.asarray(force_world_n, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(f)) and np.isfinite(duration_s) and duration_s >= 0.0):
+            raise ValueError(f"push needs a finite force and a duration >= 0, got {tuple(f)} N for {duration_s} s")
+        self._push_force = f
+        self._push_until_s = float(self.data.time) + float(duration_s)
 
     @property
     def time_s(self) -> float:
@@ -244,14 +265,28 @@ class MujocoTwin:
             goal = np.clip(goal, self._ctrl_lo, self._ctrl_hi)
             self._goal = np.where(have, goal, self._goal)
             self._apply_servo_state()
-        m, d = self.model, self.data
         self._pending_s += max(0.0, dt_s)
-        timestep = float(m.opt.timestep)
+        timestep = float(self.model.opt.timestep)
         n_steps = int(self._pending_s / timestep + 1e-9)
         if n_steps:
             self._pending_s -= n_steps * timestep
-            mujoco.mj_step(m, d, nstep=n_steps)
+            self._step(n_steps)
         return self._motions()
+
+    def _step(self, n_steps: int) -> None:
+        """``n_steps`` physics steps, a push (if one is on) applied while it lasts."""
+        m, d = self.model, self.data
+        root = self.index.root_body
+        left_s = self._push_until_s - float(d.time)
+        pushing = math.ceil(left_s / float(m.opt.timestep) - 1e-9) if left_s > 0.0 else 0
+        if pushing:
+            k = min(pushing, n_steps)
+            d.xfrc_applied[root, :3] = self._push_force
+            mujoco.mj_step(m, d, nstep=k)
+            d.xfrc_applied[root, :3] = 0.0
+            n_steps -= k
+        if n_steps:
+            mujoco.mj_step(m, d, nstep=n_steps)
 
     def _apply_servo_state(self) -> None:
         m, d = self.model, self.data
