@@ -1,4 +1,11 @@
-"""Run a batch: make the tasks, skip those already in the store, run the rest, record each row as it finishes."""
+"""Run a batch: make the tasks, skip those already in the store, run the rest, record each row as it finishes.
+
+Postures are sampled (``n`` per robot, scene and kind) or taken from a directory of posture files
+(``postures``): every file is read and checked before anything runs, and a file that is not a
+posture of the batch's robots refuses the batch (one line per bad file), so an hour-long batch
+never stops, or silently shrinks, on a typo. A posture that is readable but cannot be risen from
+(e.g. in collision in the scene) is a row with status ``unproven`` and its reason.
+"""
 
 from __future__ import annotations
 
@@ -12,8 +19,9 @@ from typing import Any
 
 from robot_rise.batch.backends import default_jobs, run_local, run_ray
 from robot_rise.batch.store import ResultStore, require_pyarrow
-from robot_rise.batch.tasks import make_tasks
+from robot_rise.batch.tasks import make_tasks, read_posture_dir
 from robot_rise.batch.worker import execute_task, failed_row
+from robot_rise.errors import RobotRiseError
 from robot_rise.model import load_robot
 from robot_rise.sampling import LYING_KINDS
 
@@ -72,9 +80,10 @@ class BatchSummary:
 
 def run_batch(
     *,
-    n: int,
+    n: int | None = None,
     seed: int,
     out: str | Path,
+    postures: str | Path | None = None,
     kinds: Sequence[str] = LYING_KINDS,
     scenes: Sequence[str] = ("flat",),
     robots: Sequence[str | None] = (None,),
@@ -84,34 +93,55 @@ def run_batch(
     rise_options: dict[str, Any] | None = None,
     execute: Callable[..., dict[str, Any]] = execute_task,
 ) -> BatchSummary:
-    """Rise from ``n`` sampled postures per robot, scene and kind; record every outcome in the store ``out``.
+    """Rise from ``n`` sampled postures per robot, scene and kind, or from the posture files of
+    ``postures``; record every outcome in the store ``out``.
 
-    Tasks already in the store are skipped, so running the same batch again resumes it.
+    Tasks already in the store are skipped, so running the same batch again resumes it. Task ids
+    cover the robot and library files, the scene's files, the seed, the posture and the rise
+    options (see :mod:`robot_rise.batch.tasks`): other options are other tasks, never skipped.
 
     Args:
-        n: postures per robot, scene and kind.
+        n: postures per robot, scene and kind (sampled); exclusive with ``postures``.
         seed: batch seed (postures and planner).
         out: the results store directory (created if missing).
-        kinds: lying kinds.
+        postures: a directory of posture@1 files (``*.json``): each is risen from once per scene,
+            for the robot it names; ``kinds`` does not apply.
+        kinds: lying kinds (sampled postures).
         scenes: shipped scene names or MJCF paths.
         robots: robot directories (None: the embedded OP3-class robot).
         jobs: local worker processes (default: all cores); with ``ray="local"``, the CPUs of the local cluster.
         ray: None for the local pool, "local" to start a local Ray cluster, or a cluster address to join.
         progress: called after each finished task.
-        rise_options: keyword arguments of ``rise`` (internal: tests use a faster filter); default the product's.
+        rise_options: keyword arguments of ``rise`` that change results (``RESULT_OPTIONS``: budget_s,
+            candidates, retries, filter_config); default the product's. Part of every task id.
         execute: the task function (internal: tests inject crashes); must be picklable.
 
     Raises:
-        RobotRiseError: bad inputs, pyarrow missing, or Ray missing when ``ray`` is set.
+        RobotRiseError: bad inputs (bad posture files: one line each, nothing run), pyarrow missing,
+            Ray missing when ``ray`` is set, or another batch writing the same store.
     """
     require_pyarrow()
     t0 = time.monotonic()
+    if (n is None) == (postures is None):
+        raise RobotRiseError("a batch takes either --n N (sampled postures) or --postures DIR, not both" if n is not None
+                             else "a batch needs --n N (sampled postures) or --postures DIR")
+    loaded = [load_robot(r) for r in robots]
+    files = read_posture_dir(postures, loaded) if postures is not None else None
+    tasks = make_tasks(loaded, n=n, seed=seed, kinds=kinds, scenes=scenes, postures=files, rise_options=rise_options)
     store = ResultStore(Path(out))
-    tasks = make_tasks([load_robot(r) for r in robots], n=n, seed=seed, kinds=kinds, scenes=scenes)
+    with store.writing():
+        return _run(store, tasks, t0=t0, jobs=jobs, ray=ray, progress=progress, rise_options=rise_options, execute=execute)
+
+
+def _run(store: ResultStore, tasks, *, t0: float, jobs, ray, progress, rise_options, execute) -> BatchSummary:
     done_ids = store.done_ids()
     todo = [t for t in tasks if t.id not in done_ids]
+    others = len(done_ids - {t.id for t in tasks})
+    if others:
+        log.warning("%s holds %d rows of other tasks (other postures, seed, options, or changed robot, library or scene "
+                    "files); they are kept", store.root, others)
     store.parts_dir.mkdir(parents=True, exist_ok=True)
-    fn = functools.partial(execute, store_root=str(store.root), rise_options=rise_options)
+    fn = functools.partial(execute, store_root=str(store.root.resolve()), rise_options=rise_options)  # Ray workers may run elsewhere
     jobs = jobs or default_jobs()
     if ray is None:
         finished = run_local(todo, fn, jobs=min(jobs, max(1, len(todo))))

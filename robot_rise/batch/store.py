@@ -5,10 +5,13 @@ Layout::
     STORE/results.parquet            one row per finished task (ROW_FIELDS), merged
     STORE/parts/<id>.parquet         rows finished since the last merge, one file per task
     STORE/trajectories/<id>.json     the trajectory of each proven row (robot-rise/trajectory@1)
+    STORE/.lock                      held (flock) by the batch writing the store
 
-Every file is written to a temporary name and renamed, so a batch killed at any moment leaves
-whole files only: at most the tasks in flight are lost. A proven task's trajectory is written
-before its row, so a row never points at a missing file. Merging folds the parts into
+Every file is written to a temporary name (``*.tmp``, never ``*.parquet`` or ``*.json``) and
+renamed, so a batch killed at any moment leaves whole files only: at most the tasks in flight are
+lost, and the next run of the store removes the temporary files a killed one left. A proven
+task's trajectory is written before its row, so a row never points at a missing file (a kill
+between the two leaves a trajectory without a row; the task runs again and replaces it). Merging folds the parts into
 ``results.parquet`` (rewritten atomically), then deletes them; a kill between the two leaves a
 part whose row is already merged, and reading drops such duplicates by id.
 
@@ -18,9 +21,11 @@ read; it is imported only when a store is read or written.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import uuid
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,9 +42,13 @@ ROW_FIELDS: dict[str, str] = {
     "robot": "string",
     "robot_digest": "string",
     "scene": "string",
+    "scene_digest": "string",  # SHA-256 of the scene's files
     "kind": "string",
     "seed": "int64",
     "index": "int64",
+    "posture_file": "string",  # the --postures file ('' for a sampled posture)
+    "posture_digest": "string",  # SHA-256 of its canonical content ('' for a sampled posture)
+    "options": "string",  # the rise options that change a result (JSON, defaults filled in)
     "status": "string",  # proven | unproven | failed (the task crashed twice)
     "proven": "bool_",
     "reason": "string",  # why not proven, or the error of a failed task
@@ -63,6 +72,8 @@ ROW_FIELDS: dict[str, str] = {
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
 TRAJECTORIES_DIR = "trajectories"
+LOCK_FILE = ".lock"
+TEMPORARY_SUFFIX = ".tmp"
 
 
 def require_pyarrow():
@@ -81,7 +92,7 @@ def _schema():
 
 
 def _sort_key(row: dict[str, Any]) -> tuple:
-    return (row["robot"], row["robot_digest"], row["scene"], row["kind"], row["seed"], row["index"])
+    return (row["robot"], row["robot_digest"] or "", row["scene"], row["kind"], row["seed"], row["index"], row["id"])
 
 
 @dataclass(frozen=True)
@@ -108,6 +119,47 @@ class ResultStore:
     def trajectory_path(self, task_id: str) -> Path:
         return self.trajectories_dir / f"{task_id}.json"
 
+    @contextlib.contextmanager
+    def writing(self) -> Iterator[ResultStore]:
+        """Hold the store's lock while a batch writes it, and remove what a killed batch left half-written.
+
+        The lock (``flock`` on ``STORE/.lock``) is released by the kernel when its process dies,
+        however it dies; so a held lock means another batch is running on this store.
+
+        Raises:
+            RobotRiseError: another batch is writing the store.
+        """
+        import fcntl
+
+        self.root.mkdir(parents=True, exist_ok=True)
+        with open(self.root / LOCK_FILE, "a+") as f:
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                f.seek(0)
+                raise RobotRiseError(f"{self.root}: another batch is writing this store ({f.read().strip() or 'pid unknown'})",
+                                     hint="wait for it to finish, or use another --out") from None
+            f.seek(0), f.truncate(), f.write(f"pid {os.getpid()}\n"), f.flush()
+            removed = self.remove_temporaries()
+            if removed:
+                log.info("%s: removed %d temporary files a killed batch left", self.root, removed)
+            try:
+                yield self
+            finally:
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+    def temporaries(self) -> list[Path]:
+        """The temporary files in the store: those of writes in progress, or left by a killed batch."""
+        dirs = [d for d in (self.root, self.parts_dir, self.trajectories_dir) if d.is_dir()]
+        return sorted(p for d in dirs for p in d.glob(f"*{TEMPORARY_SUFFIX}"))
+
+    def remove_temporaries(self) -> int:
+        """Remove :meth:`temporaries` (only while holding :meth:`writing`); return how many."""
+        paths = self.temporaries()
+        for p in paths:
+            p.unlink(missing_ok=True)
+        return len(paths)
+
     def exists(self) -> bool:
         return self.results_path.exists() or self.parts_dir.is_dir()
 
@@ -117,7 +169,7 @@ class ResultStore:
         pa = require_pyarrow()
         table = pa.Table.from_pylist([{k: r.get(k) for k in ROW_FIELDS} for r in rows], schema=_schema())
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+        tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}{TEMPORARY_SUFFIX}")
         try:
             pq.write_table(table, tmp)
             os.replace(tmp, path)

@@ -1,8 +1,12 @@
-"""What one batch task does in a worker process: sample its posture, rise, write the trajectory, return its row.
+"""What one batch task does in a worker process: take or sample its posture, rise, write the trajectory, return its row.
 
 The worker keeps one ``RiseContext`` per robot directory and scene (the checker, library and
 tree cost a fraction of a second each to build) and holds no trajectory after returning: memory
 stays flat however many tasks a worker runs.
+
+A worker is one core's worth of work: its ensemble replays run one after another (one thread),
+and the batch's parallelism is its workers (``--jobs``, or Ray's CPUs). The variants' verdicts do
+not depend on the thread count, so neither does a row.
 """
 
 from __future__ import annotations
@@ -17,21 +21,36 @@ from robot_rise.batch.tasks import BatchTask, posture_seed
 __all__ = ["execute_task", "failed_row"]
 
 _CONTEXTS: dict[tuple[str, str], Any] = {}  # per worker process: (robot_dir, scene) -> RiseContext
+ENSEMBLE_THREADS = 1  # per worker: the workers are the parallelism
 
 
 def _context(task: BatchTask):
+    key = (task.robot_dir, task.scene)
+    if key in _CONTEXTS:
+        return _CONTEXTS[key]
+    import dataclasses
+
+    from robot_rise.filter.ensemble import EnsembleReplayer
     from robot_rise.model import load_robot
     from robot_rise.rise import RiseContext
 
-    key = (task.robot_dir, task.scene)
-    if key not in _CONTEXTS:
-        _CONTEXTS[key] = RiseContext.build(load_robot(task.robot_dir), task.scene)
+    class WorkerContext(RiseContext):
+        """A RiseContext whose ensemble replays on ENSEMBLE_THREADS threads (built on first use, as the base's)."""
+
+        def ensemble(self) -> EnsembleReplayer:
+            if self._ensemble is None:
+                self._ensemble = EnsembleReplayer(self.robot, self.scene, threads=ENSEMBLE_THREADS)
+            return self._ensemble
+
+    base = RiseContext.build(load_robot(task.robot_dir), task.scene)
+    _CONTEXTS[key] = WorkerContext(**{f.name: getattr(base, f.name) for f in dataclasses.fields(base)})
     return _CONTEXTS[key]
 
 
 def _base_row(task: BatchTask) -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(ROW_FIELDS)
-    row.update(id=task.id, robot=task.robot, robot_digest=task.robot_digest, scene=task.scene, kind=task.kind, seed=task.seed, index=task.index)
+    row.update(id=task.id, robot=task.robot, robot_digest=task.robot_digest, scene=task.scene, kind=task.kind, seed=task.seed, index=task.index,
+               scene_digest=task.scene_digest, posture_file=task.posture_file, posture_digest=task.posture_digest, options=task.options)
     row.update(reason="", motion="", trajectory="", proven=False, tries=1)
     return row
 
@@ -44,7 +63,7 @@ def failed_row(task: BatchTask, error: str, *, tries: int, wall_s: float | None 
 
 
 def execute_task(task: BatchTask, *, store_root: str, rise_options: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Rise from the task's posture; write its trajectory when proven; return its row.
+    """Rise from the task's posture (its posture file's, or sampled); write its trajectory when proven; return its row.
 
     An expected failure (no proof, a posture that cannot be sampled or is invalid) is a row with
     status ``unproven`` and its reason. Anything else raises, and the backend retries the task.
@@ -54,7 +73,10 @@ def execute_task(task: BatchTask, *, store_root: str, rise_options: dict[str, An
         store_root: the results store directory (the trajectory goes to its ``trajectories/``).
         rise_options: keyword arguments of :func:`robot_rise.rise.rise` (default: the product's).
     """
+    import json
+
     from robot_rise.errors import RobotRiseError
+    from robot_rise.posture import posture_from_dict
     from robot_rise.rise import rise
     from robot_rise.sampling import sample_lying
     from robot_rise.trajectory import write_trajectory
@@ -63,7 +85,10 @@ def execute_task(task: BatchTask, *, store_root: str, rise_options: dict[str, An
     row = _base_row(task)
     context = _context(task)
     try:
-        posture = sample_lying(context.robot, task.kind, 1, posture_seed(task.seed, task.index), scene=task.scene).postures[0]  # type: ignore[arg-type]
+        if task.posture:  # a posture file's
+            posture = posture_from_dict(json.loads(task.posture), context.robot, where=task.posture_file or task.id)
+        else:
+            posture = sample_lying(context.robot, task.kind, 1, posture_seed(task.seed, task.index), scene=task.scene).postures[0]  # type: ignore[arg-type]
         result = rise(context.robot, posture, scene=task.scene, seed=task.seed, context=context, **(rise_options or {}))
     except RobotRiseError as e:  # an expected failure of this posture: a status, not a crash
         row.update(status="unproven", reason=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - t0)

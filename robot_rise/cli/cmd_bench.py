@@ -41,6 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="replay each proven output on N random model variants and report the share that stands")
     r.add_argument("--noise-trials", type=int, default=0, metavar="K",
                    help="re-prove each proven output K times with 1e-6 rad noise on its targets; count verdict flips")
+    r.add_argument("--rank", choices=("duration", "distance"), default="duration",
+                   help="which library motion rise tries first: the quickest expected get-up (default) or the nearest")
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
@@ -96,7 +98,7 @@ def run_rise(args: argparse.Namespace) -> int:
 
     robot = load_robot_arg(args)
     total = 3 * args.n_per_kind
-    cases = bench_rise(robot, n_per_kind=args.n_per_kind, seed=args.seed, scene=args.scene, budget_s=args.budget,
+    cases = bench_rise(robot, n_per_kind=args.n_per_kind, seed=args.seed, scene=args.scene, budget_s=args.budget, candidate_rank=args.rank,
                        jobs=args.jobs, robustness=not args.no_robustness, variants=args.variants,
                        noise_trials=args.noise_trials, progress=Progress("rising", total))
     summary = summarize_rise(cases)
@@ -130,12 +132,12 @@ def run_rise(args: argparse.Namespace) -> int:
 def run_margins(args: argparse.Namespace) -> int:
     from robot_rise.bench.margins import margins_of
     from robot_rise.cli._common import Progress, load_trajectory_for
-    from robot_rise.library import load_library
+    from robot_rise.library import load_library, robot_library_dir
 
     robot = load_robot_arg(args)
     named = [(path, load_trajectory_for(robot, path)) for path in args.trajectories]
     if args.library:
-        named += [(m.name, m.trajectory) for m in load_library(robot_name=robot.library).motions]
+        named += [(m.name, m.trajectory) for m in load_library(robot_library_dir(robot)).motions]
     if not named:
         raise RobotRiseError("no trajectory to measure", hint="pass TRAJ files or --library")
     progress = Progress("margins", len(named))
