@@ -22,11 +22,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from robot_rise.authoring.adapt import adapt_to_body, fit_to_body, reference_statics
 from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import settle
@@ -250,7 +252,8 @@ def author_library(
         except (ValueError, KeyError):
             old_rows = {}
     entries = []
-    specs = motion_specs(robot, strategies)
+    chosen = strategies if strategies is not None else load_strategies()
+    specs = motion_specs(robot, chosen)
     failed = failures if failures is not None else {}
 
     def fail(name: str, reason: str) -> None:
@@ -269,45 +272,85 @@ def author_library(
         if kind != spec.lying:
             fail(spec.name, f"its lying posture settles {kind}, not {spec.lying}")
             continue
-        if spec.retime:
-            fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
-            kfs = retime(robot, start, fine, players, ratio_target=RETIME_RATIO_TARGET)
-            connect_until_s = kfs[where[spec.connect_keyframe]].t_s
-        else:
-            kfs = spec.keyframes
-            connect_until_s = kfs[spec.connect_keyframe].t_s
-        tr = build_trajectory(robot, start, kfs)
-        if spec.clamp_lead:
-            tr = clamp_goal_lead(robot, tr, players)
-        verdicts = [judge(p.play(tr)) for p in players]
-        bad = [f"{i}: {v.summary()}" for i, v in enumerate(verdicts) if not v.standing or v.self_collision or v.peak_envelope_ratio > TORQUE_BOUND]
-        if bad:
-            fail(spec.name, f"{tr.duration_s:.2f} s motion fails on the robustness players: " + "; ".join(bad))
+        adaptation = ""
+        if robot.roles is not None:
+            # the strategy as its own robot does it: the statics this body is fitted to (a no-op there)
+            reference = load_robot()
+            ref_spec = motion_specs(reference, tuple(s for s in chosen if s.name == spec.name))[0]
+            ref = reference_statics(reference, ref_spec.keyframes, settle(reference, ref_spec.lying, ref_spec.lying_joints, yaw_rad=ref_spec.lying_yaw_rad))
+            written = spec.keyframes
+            fitted, notes = fit_to_body(robot, written, start, ref)
+            if notes:
+                log.info("%s: fitted to the body: %s", spec.name, "; ".join(notes))
+                adaptation = f"{len(notes)} keyframes fitted to the body's statics"
+                spec = dataclasses.replace(spec, keyframes=fitted)
+            raw = judge(player.play(build_trajectory(robot, start, spec.keyframes)))
+            if not raw.standing and ref.stands:
+                # it stands on its own robot as written, not on this body: search the body-relative
+                # parameters (a strategy that needs its timing found on its own robot too goes on to retiming)
+                adapted = adapt_to_body(robot, written, start, players, ref, seed=zlib.crc32(spec.name.encode()))
+                if adapted.keyframes is None:
+                    fail(spec.name, f"does not stand as written ({raw.reason}); {adapted.note}")
+                    continue
+                adaptation = adapted.note
+                log.info("%s: adapted to the body: %s", spec.name, adaptation)
+                spec = dataclasses.replace(spec, keyframes=adapted.keyframes)
+        # the fastest timing first; should it not be proven, slower ones (the retiming before its
+        # coordinate descent, then the keyframes' own timing): never needed on the strategies' own robot
+        attempts = ("fastest", "unrefined", "unretimed") if spec.retime else ("as written",)
+        reasons: list[str] = []
+        done = None
+        for attempt in attempts:
+            if attempt in ("fastest", "unrefined"):
+                fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
+                kfs = retime(robot, start, fine, players, ratio_target=RETIME_RATIO_TARGET, **({} if attempt == "fastest" else {"refine_steps": ()}))
+                connect_until_s = kfs[where[spec.connect_keyframe]].t_s
+            elif attempt == "unretimed":
+                kfs = speed_prescale(robot, start, spec.keyframes)
+                connect_until_s = kfs[spec.connect_keyframe].t_s
+            else:
+                kfs = spec.keyframes
+                connect_until_s = kfs[spec.connect_keyframe].t_s
+            tr = build_trajectory(robot, start, kfs)
+            if spec.clamp_lead:
+                tr = clamp_goal_lead(robot, tr, players)
+            verdicts = [judge(p.play(tr)) for p in players]
+            bad = [f"{i}: {v.summary()}" for i, v in enumerate(verdicts) if not v.standing or v.self_collision or v.peak_envelope_ratio > TORQUE_BOUND]
+            if bad:
+                reasons.append(f"{tr.duration_s:.2f} s motion fails on the robustness players: " + "; ".join(bad))
+                continue
+            rec = player.play(tr)
+            v = judge(rec)
+            # simulated root pose at every row (rows at ROW_HZ, recording at 100 Hz: interpolate)
+            root = np.stack([np.interp(tr.t, np.concatenate([[0.0], rec.t]), np.concatenate([[start.root_pos[i] if i < 3 else start.root_quat_wxyz[i - 3]], rec.root_pose[:, i]])) for i in range(7)], axis=-1)
+            root[:, 3:] /= np.linalg.norm(root[:, 3:], axis=1, keepdims=True)
+            report = {
+                "strategy": spec.strategy,
+                "lying": spec.lying,
+                "duration_s": tr.duration_s,
+                "standing": v.standing,
+                "verdict": v.summary(),
+                "peak_envelope_ratio": v.peak_envelope_ratio,
+                "peak_envelope_ratio_corners": max(x.peak_envelope_ratio for x in verdicts),
+                "min_zmp_margin_m": v.min_zmp_margin_m,
+                "self_collision": v.self_collision,
+                "connect_until_s": connect_until_s,
+                "keyframe_times_s": [k.t_s for k in kfs],
+                "robot_digest": robot.digest(),
+            }
+            if adaptation:
+                report["adaptation"] = adaptation
+            as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
+            tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
+            if not proof.proven:
+                reasons.append(f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems))
+                continue
+            done = (tr, v, report, connect_until_s)
+            break
+        if done is None:
+            fail(spec.name, " / slower: ".join(reasons))
             continue
-        rec = player.play(tr)
-        v = judge(rec)
-        # simulated root pose at every row (rows at ROW_HZ, recording at 100 Hz: interpolate)
-        root = np.stack([np.interp(tr.t, np.concatenate([[0.0], rec.t]), np.concatenate([[start.root_pos[i] if i < 3 else start.root_quat_wxyz[i - 3]], rec.root_pose[:, i]])) for i in range(7)], axis=-1)
-        root[:, 3:] /= np.linalg.norm(root[:, 3:], axis=1, keepdims=True)
-        report = {
-            "strategy": spec.strategy,
-            "lying": spec.lying,
-            "duration_s": tr.duration_s,
-            "standing": v.standing,
-            "verdict": v.summary(),
-            "peak_envelope_ratio": v.peak_envelope_ratio,
-            "peak_envelope_ratio_corners": max(x.peak_envelope_ratio for x in verdicts),
-            "min_zmp_margin_m": v.min_zmp_margin_m,
-            "self_collision": v.self_collision,
-            "connect_until_s": connect_until_s,
-            "keyframe_times_s": [k.t_s for k in kfs],
-            "robot_digest": robot.digest(),
-        }
-        as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
-        tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
-        if not proof.proven:
-            fail(spec.name, f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems))
-            continue
+        tr, v, report, connect_until_s = done
         tmp_dir = out_dir / ".authoring"
         tmp_dir.mkdir(exist_ok=True)
         write_trajectory(tmp_dir / f"{spec.name}.json", tr)
