@@ -21,7 +21,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robot_rise.constants import METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
+from robot_rise.constants import ENVELOPE_MARGIN, METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
 from robot_rise.errors import ConfigError, SceneError
 from robot_rise.paths import default_robot_dir, scene_path
 from robot_rise.roles import JointRole, RoleMap
@@ -141,6 +141,36 @@ class Robot:
         mujoco.mj_kinematics(m, d)
         sole_z = min(d.site(s).xpos[2] for s in self.sole_sites)
         return float(d.site(self.torso_site).xpos[2] - sole_z)
+
+    @cached_property
+    def joint_inertia_kg_m2(self) -> np.ndarray:
+        """Each joint's inertia about its own axis in the ``stand`` keyframe, the servo's armature
+        included [kg m^2], shape (n,): the diagonal of MuJoCo's joint-space inertia matrix."""
+        m = compose(self, None, with_actuators=True)
+        d = mujoco.MjData(m)
+        idx = model_index(m, self)
+        d.qpos[:] = m.qpos0
+        d.qpos[idx.qpos_root] = self.stand_qpos[:7]
+        d.qpos[idx.qpos_joints] = self.stand_qpos[7:]
+        mujoco.mj_forward(m, d)
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, full)
+        return full[idx.dof_joints, idx.dof_joints].copy()
+
+    def joint_accel_limits_rad_s2(self, speed_fraction: float) -> np.ndarray:
+        """Per joint, the acceleration its servo can give the joint's own inertia while turning at
+        ``speed_fraction`` of its no-load speed, within the envelope margin [rad/s^2], shape (n,).
+
+        The DC-motor envelope leaves ``stall (1 - speed_fraction)`` at that speed, of which the
+        filter lets a motion use ``1 - ENVELOPE_MARGIN`` (robot_rise/servo.py): so a trapezoid at
+        this acceleration and speed stays inside the envelope for an unloaded limb (OP3: 28 rad/s^2
+        for the hips, 60 for the arms at 0.8 of no-load). Loads (gravity, contacts) are the
+        dynamics filter's to find: it slows what exceeds the envelope.
+        """
+        if not 0.0 <= speed_fraction < 1.0:
+            raise ValueError(f"speed_fraction must lie in [0, 1), not {speed_fraction}")
+        stall = np.array([s.stall_torque_nm for s in self.servo_datasheets()])
+        return (1.0 - ENVELOPE_MARGIN) * (1.0 - speed_fraction) * stall / self.joint_inertia_kg_m2
 
     def digest(self) -> str:
         """SHA-256 over every file of the robot (identifies the model a result was proven on).

@@ -313,9 +313,11 @@ def test_reprove_library_refuses_a_start_more_than_two_ticks_past_a_limit(tmp_pa
 def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> None:
     """Issue 17: connecting candidates ranked by expected get-up time (approach + rest of the motion)."""
     from robot_rise.library import connection_candidates
-    from robot_rise.library.selection import MAX_ROOT_TURN_RAD, expected_getup_s
+    from robot_rise.library.selection import MAX_ROLL_ONTO_FRONT_RAD, MAX_ROOT_TURN_RAD, expected_getup_s
 
     index = FrameIndex.build(LIBRARY, ROBOT)
+    reach = np.array([MAX_ROLL_ONTO_FRONT_RAD if LIBRARY.get(index.motion_names[m]).lying == "prone" else MAX_ROOT_TURN_RAD
+                      for m in index.motion_id])
     for name in ("prone_knees_first", "supine_backroll_kneel", "left_tip_forward"):
         start = LIBRARY.get(name).start
         by_time = connection_candidates(LIBRARY, ROBOT, start, 3, index=index, rank="duration")
@@ -323,19 +325,21 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
         expected, turn = expected_getup_s(index, LIBRARY, ROBOT, start)
         rows = {(index.motion_names[index.motion_id[i]], int(index.frame[i])): i for i in range(index.size)}
         first = rows[(by_time[0].motion, by_time[0].frame)]
-        assert turn[first] <= MAX_ROOT_TURN_RAD
+        assert turn[first] <= reach[first]
         # the quickest of the motions' nearest reachable frames comes first
         q, jw = index.query_features(start.root_quat_wxyz, start.joint_vector(ROBOT.joint_names))
         d = index.distances(q, jw)
         per_motion = []
         for mid in range(len(index.motion_names)):
-            r = np.flatnonzero((index.motion_id == mid) & (turn <= MAX_ROOT_TURN_RAD))
+            r = np.flatnonzero((index.motion_id == mid) & (turn <= reach))
             if r.size:
                 per_motion.append(float(expected[r[np.argmin(d[r])]]))
         assert expected[first] == pytest.approx(min(per_motion))
         assert expected[first] >= LIBRARY.get(by_time[0].motion).trajectory.duration_s - by_time[0].time_s
         # the nearest is tried first or second; no motion twice; as many candidates as by distance
         assert (by_distance[0].motion, by_distance[0].frame) in [(c.motion, c.frame) for c in by_time[:2]]
-        assert len({c.motion for c in by_time}) == len(by_time) == len(by_distance)
+        assert len({c.motion for c in by_time}) == len(by_distance) == len(by_time)
+        if name == "left_tip_forward":  # a side rolls onto its front to join the quick prone motion
+            assert LIBRARY.get(by_time[0].motion).lying == "prone" and turn[first] > MAX_ROOT_TURN_RAD
     with pytest.raises(ValueError, match="rank"):
         connection_candidates(LIBRARY, ROBOT, LIBRARY.motions[0].start, 1, index=index, rank="fastest")

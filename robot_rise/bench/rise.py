@@ -93,6 +93,10 @@ class RiseCase:
     noise_trials: int = 0  # replays with 1e-6 rad target noise
     noise_flips: int = 0  # ... whose verdict differed
     seconds: dict[str, float] | None = None  # where the wall time went: plan, filter (nominal), ensemble
+    stood_from_s: float = float("nan")  # when the final standing stretch began (the judge) [s]
+    # where the robot's time went [s]: the planned approach, the library motion from the connecting
+    # frame on, and what the filter added by slowing (duration - approach - library)
+    robot_time: dict[str, float] | None = None
 
 
 _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
@@ -136,7 +140,20 @@ def _rise_case(args: tuple) -> RiseCase:
         margins.variants if margins else 0, margins.variants_standing if margins else 0,
         margins.noise_trials if margins else 0, margins.noise_flips if margins else 0,
         _seconds(result, rep),
+        proof.stood_from_s if proof and proof.stood_from_s is not None else float("nan"),
+        _robot_time(context.library, rep, proof.duration_s) if proof and result.proven else None,
     )
+
+
+def _robot_time(library, report, duration_s: float) -> dict[str, float] | None:
+    """Approach, library part and filter slowing of a proven rise [s] (None if not a library join,
+    e.g. a recovery after a failed first attempt)."""
+    if "recovery" in report or "motion" not in report or "connecting_frame" not in report:
+        return None
+    tr = library.get(str(report["motion"])).trajectory
+    approach = float(report.get("plan_duration_s", 0.0))
+    rest = float(tr.duration_s - tr.t[int(report["connecting_frame"])])
+    return {"approach": approach, "library": rest, "slowed": max(0.0, duration_s - approach - rest)}
 
 
 def _seconds(result, report) -> dict[str, float]:
@@ -213,6 +230,8 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             "wall_median_s": float(np.median(wall)),
             "wall_p95_s": float(np.percentile(wall, 95)),
             "duration_median_s": float(np.median(dur)),
+            "duration_p90_s": float(np.percentile(dur, 90)),
+            "stood_from_median_s": float(np.nanmedian([c.stood_from_s for c in ok])) if ok else float("nan"),
             "peak_torque_ratio_max": float(np.max(peak)),
         }
         for label in (v.label for v in BENCH_MODEL_VARIANTS):
@@ -223,6 +242,10 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
         for stage in ("plan", "filter_nominal", "ensemble"):
             if timed:
                 row[f"{stage}_median_s"] = float(np.median([t.get(stage, 0.0) for t in timed]))
+        split = [c.robot_time for c in ok if c.robot_time]
+        for part in ("approach", "library", "slowed"):
+            if split:
+                row[f"{part}_median_s"] = float(np.median([t[part] for t in split]))
         measured = [c for c in ok if c.variants]
         if measured:
             shares = np.array([c.variants_standing / c.variants for c in measured])

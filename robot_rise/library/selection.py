@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_rise.constants import JOINT_ACCEL_LIMIT_RAD_S2, JOINT_SPEED_FRACTION_OF_NO_LOAD, ROOT_ANGULAR_SPEED_LIMIT_RAD_S
+from robot_rise.constants import JOINT_SPEED_FRACTION_OF_NO_LOAD, ROOT_ANGULAR_SPEED_LIMIT_RAD_S
 from robot_rise.library.frames import Connection, FrameIndex
 from robot_rise.library.motions import MotionLibrary, load_library, robot_library_dir
 from robot_rise.library.tree import KMeansTree
@@ -21,15 +21,21 @@ from robot_rise.placement import place_near
 from robot_rise.posture import Posture
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["LYING_ROOT_RISE_M", "MAX_ROOT_TURN_RAD", "lying_frames", "connection_candidates", "expected_getup_s", "connecting_posture", "select_connecting_posture"]
+__all__ = ["LYING_ROOT_RISE_M", "MAX_ROOT_TURN_RAD", "MAX_ROLL_ONTO_FRONT_RAD", "lying_frames", "connection_candidates", "expected_getup_s", "connecting_posture", "select_connecting_posture"]
 
 log = logging.getLogger(__name__)
 
 LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is this close to the start's height
 MAX_ROOT_TURN_RAD = 0.6  # duration ranking: frames whose root is turned further from the start's are out of a plan's reach
-# Planned approaches take 1.8-4.4x (median 2.3x) the straight-line trapezoid (6 rises, seed 1):
-# the path bends around the body and the filter slows what the servos cannot follow.
-APPROACH_TIME_FACTOR = 2.5
+# ... except a prone motion's frames, up to this turn: a body on its side rolls onto its front
+# (limbs fold forward, gravity does the rest), not off its back. OP3, seed 1: side starts whose
+# root is 0.9-1.9 rad from a prone frame were proven joining prone_elbow_knees_quick (5 of 5),
+# 2.3 rad (a side leaning back) not; from the back onto a side: 0 of 6.
+MAX_ROLL_ONTO_FRONT_RAD = 2.0
+# Approaches (first command to the connecting frame, as proven) take 1.8-7.9x (median 3.0x) the
+# straight-line trapezoid (16 rises, 4 per lying kind, seed 1): the path bends around the body,
+# a roll waits for gravity and the filter slows what the servos cannot follow.
+APPROACH_TIME_FACTOR = 3.0
 
 
 def lying_frames(index: FrameIndex, library: MotionLibrary, *, max_rise_m: float = LYING_ROOT_RISE_M) -> FrameIndex:
@@ -69,7 +75,8 @@ def connection_candidates(
     ``rank="distance"``: the nearest frame of the ``k`` nearest motions (paper 000 eq. 1); the very
     nearest comes from the K-means tree (paper 000 section 4.1), the runners-up per motion from the
     same frame index. ``rank="duration"``: per motion, its nearest frame among those whose root is
-    within ``MAX_ROOT_TURN_RAD`` of the start's (a plan moves the joints, not the body); motions
+    within ``MAX_ROOT_TURN_RAD`` of the start's (a plan moves the joints, not the body; a prone
+    motion's within ``MAX_ROLL_ONTO_FRONT_RAD``: a side rolls onto its front); motions
     ordered by the expected get-up through that frame (:func:`expected_getup_s`: the approach at the
     servos' speed plus the rest of the motion; issue 17: join the library where it pays), the
     nearest frame overall kept as the runner-up.
@@ -96,7 +103,8 @@ def connection_candidates(
     expected, turn = expected_getup_s(index, library, robot, start)
     scored = []
     for mid in range(len(index.motion_names)):
-        rows = np.flatnonzero((index.motion_id == mid) & (turn <= MAX_ROOT_TURN_RAD))
+        reach = MAX_ROLL_ONTO_FRONT_RAD if library.get(index.motion_names[mid]).lying == "prone" else MAX_ROOT_TURN_RAD
+        rows = np.flatnonzero((index.motion_id == mid) & (turn <= reach))
         if rows.size:
             # the motion's nearest frame (a later frame's shorter rest did not pay: its longer
             # approach failed or outlasted the estimate), the motions ordered by expected time
@@ -116,11 +124,12 @@ def expected_getup_s(index: FrameIndex, library: MotionLibrary, robot: Robot, st
     """Per frame: the expected get-up time from ``start`` through it [s], and the root turn to it [rad].
 
     The approach takes the slowest joint's trapezoid at the planner's timing limits (speed
-    JOINT_SPEED_FRACTION_OF_NO_LOAD x no-load, acceleration JOINT_ACCEL_LIMIT_RAD_S2), or the root's
-    turn at its angular speed limit if longer; then the motion plays from that frame to its end.
+    JOINT_SPEED_FRACTION_OF_NO_LOAD x no-load, acceleration ``Robot.joint_accel_limits_rad_s2``),
+    or the root's turn at its angular speed limit if longer; then the motion plays from that frame
+    to its end.
     """
     v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * JOINT_SPEED_FRACTION_OF_NO_LOAD
-    a = JOINT_ACCEL_LIMIT_RAD_S2
+    a = robot.joint_accel_limits_rad_s2(JOINT_SPEED_FRACTION_OF_NO_LOAD)
     frame_joints = index.joints_w / index.sqrt_w
     dist = np.abs(frame_joints - start.joint_vector(robot.joint_names))
     ramp = v * v / a  # distance covered accelerating to full speed and back

@@ -2,7 +2,8 @@
 
 Paper 000 section 4.3 plays the smoothed curve at constant speed; that is the floor. We give
 each joint a velocity limit (a fraction of its servo's no-load speed, robot_rise/servo.py) and
-an acceleration limit, and the planned root a linear and angular speed and acceleration limit,
+an acceleration limit (what the servo gives the joint's own inertia at that speed within the
+torque-speed envelope: near time-optimal for unloaded limbs, the filter slowing loaded ones), and the planned root a linear and angular speed and acceleration limit,
 and find the fastest progress along the path that keeps all of them (path-velocity
 decomposition, Bobrow / Shin & McKay; the classic forward-backward pass over the waypoints):
 
@@ -28,7 +29,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.constants import (
-    JOINT_ACCEL_LIMIT_RAD_S2,
     JOINT_SPEED_FRACTION_OF_NO_LOAD,
     ROOT_ACCEL_LIMIT_M_S2,
     ROOT_ANGULAR_ACCEL_LIMIT_RAD_S2,
@@ -73,10 +73,14 @@ class TimingLimits:
         robot: Robot,
         *,
         speed_fraction: float = JOINT_SPEED_FRACTION_OF_NO_LOAD,
-        joint_accel_rad_s2: float = JOINT_ACCEL_LIMIT_RAD_S2,
+        joint_accel_rad_s2: float | None = None,
     ) -> TimingLimits:
-        """Per joint: ``speed_fraction`` x its servo's no-load speed; a common acceleration limit."""
+        """Per joint: ``speed_fraction`` x its servo's no-load speed, and the acceleration its servo
+        gives the joint's own inertia at that speed within the envelope
+        (``Robot.joint_accel_limits_rad_s2``), or ``joint_accel_rad_s2`` for every joint."""
         v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * speed_fraction
+        if joint_accel_rad_s2 is None:
+            return cls(v, robot.joint_accel_limits_rad_s2(speed_fraction))
         return cls(v, np.full(robot.n_joints, float(joint_accel_rad_s2)))
 
 
