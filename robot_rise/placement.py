@@ -8,19 +8,27 @@ on. When that placement collides with an obstacle, nearby placements are tried.
 The same placement predicts where every later frame of the motion would be (:func:`place_like`);
 a lying robot cannot move its root by itself, so if the motion has no room there (a table over
 it), it cannot rise from here whatever the planner does (:func:`motion_room`).
+
+Two ways of putting a body on the ground, each in one place: a lying body by its lowest point
+(:func:`lowest_point_at`: the collision geometry, as the validity checker measures it), a standing
+one by its soles (:func:`place_on_soles`: robot-alone kinematics, the sole sites at z = 0).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from robot_rise.posture import Posture, quat_multiply
 from robot_rise.validity import ValidityChecker
 
 __all__ = [
+    "lowest_point_at",
+    "place_on_soles",
     "best_yaw",
     "align_to_start",
     "place_near",
@@ -40,6 +48,60 @@ PLACEMENT_MAX_M = 0.25
 PLACEMENT_LIFTS_M = (0.0, 0.02, 0.04, 0.06, 0.08)  # candidate heights above the start's floor [m]
 
 
+def lowest_point_at(checker: ValidityChecker, qpos: np.ndarray, z_m: float = 0.0) -> np.ndarray:
+    """``qpos`` moved straight up or down so the robot's lowest point is at height ``z_m`` [m].
+
+    Args:
+        checker: measures the lowest point (:meth:`ValidityChecker.lowest_point_z`); ``qpos`` is in
+            its model's layout.
+        qpos: the posture, shape (nq,); not changed.
+        z_m: the height the lowest point is put at [m] (0: resting on flat ground).
+
+    Returns:
+        a copy of ``qpos`` with only the root height changed, shape (nq,).
+    """
+    q = np.array(qpos, dtype=float)
+    q[checker.index.qpos_root[2]] += z_m - checker.lowest_point_z(q)
+    return q
+
+
+def place_on_soles(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    qpos_root: Sequence[int] | np.ndarray,
+    sole_sites: Sequence[int],
+    *,
+    flat_sole_xmat: np.ndarray | None = None,
+) -> None:
+    """Stand the posture in ``d`` on its soles: root over the origin, the lowest sole site at z = 0.
+
+    The root is put at the origin, upright, or, with ``flat_sole_xmat``, turned so that the first
+    sole site has that orientation (the soles flat, whatever the joints do to them); then it is
+    moved vertically until the lowest sole site is at z = 0. ``d`` is left with its kinematics and
+    centres of mass computed (``d.site_xpos``, ``d.geom_xpos``, ``d.subtree_com``).
+
+    Args:
+        m: a model of the robot alone (no ground needed: nothing is simulated).
+        d: its data; ``d.qpos`` holds the joint angles [rad] (the root's 7 values are overwritten).
+        qpos_root: the 7 qpos indices of the root free joint (position xyz, quaternion wxyz).
+        sole_sites: site ids of the soles.
+        flat_sole_xmat: orientation to give the first sole site, shape (3, 3) (its orientation in
+            the root frame at a pose where the soles are flat); None keeps the root upright.
+    """
+    root = np.asarray(qpos_root)
+    d.qpos[root] = [0, 0, 0, 1, 0, 0, 0]
+    mujoco.mj_kinematics(m, d)
+    if flat_sole_xmat is not None:
+        sole = d.site_xmat[sole_sites[0]].reshape(3, 3)  # the first sole's frame in the root frame
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, (flat_sole_xmat @ sole.T).ravel())
+        d.qpos[root[3:]] = quat
+        mujoco.mj_kinematics(m, d)
+    d.qpos[root[2]] = -min(d.site_xpos[s][2] for s in sole_sites)
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+
+
 def best_yaw(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
     """R_z(psi) q with psi minimising the orientation distance to q_ref (see posture.py)."""
     k = np.array([0.0, 0.0, 0.0, 1.0])
@@ -55,15 +117,16 @@ def align_to_start(goal: Posture, start: Posture, checker: ValidityChecker, *, x
     """Goal turned to the start's facing direction, at the start's (or given) x, y, resting on z = 0."""
     quat = best_yaw(start.root_quat_wxyz, goal.root_quat_wxyz)
     pos = np.array([*(start.root_pos[:2] if xy is None else xy), 0.0])
-    g = goal.with_root(pos, quat)
-    low = checker.lowest_point_z(checker.qpos_of(g))
-    return g.with_root(pos - np.array([0.0, 0.0, low]))
+    return _lowest_point_at(goal.with_root(pos, quat), checker, 0.0)
+
+
+def _lowest_point_at(p: Posture, checker: ValidityChecker, z_m: float) -> Posture:
+    q = lowest_point_at(checker, checker.qpos_of(p), z_m)
+    return p.with_root(q[checker.index.qpos_root[:3]])
 
 
 def _on_floor(goal: Posture, start: Posture, checker: ValidityChecker, xy: np.ndarray, floor_z: float) -> Posture:
-    g = align_to_start(goal, start, checker, xy=xy)
-    low = checker.lowest_point_z(checker.qpos_of(g))
-    return g.with_root(g.root_pos + np.array([0.0, 0.0, floor_z - low]))
+    return _lowest_point_at(align_to_start(goal, start, checker, xy=xy), checker, floor_z)
 
 
 def _rings() -> list[np.ndarray]:

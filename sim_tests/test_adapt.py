@@ -4,7 +4,6 @@ strategies were written for, statics and self contact on imported bodies, the se
 from __future__ import annotations
 
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,23 +27,7 @@ from robot_rise.model import compose, load_robot, model_index
 from robot_rise.sim.player import Player
 from robot_rise.sim.standing import judge
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "robots"
-ROBOTS = {"wolfgang": (SHARED / "wolfgang" / "wolfgang.xml", "MX-106"), "bez1": (SHARED / "bez1" / "bez1.xml", "MX-28")}
-needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/robots not beside the repository")
-
-
-@pytest.fixture(scope="module")
-def imported(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    if not SHARED.is_dir():
-        pytest.skip("../shared/robots not beside the repository")
-    from robot_rise.robot_import import import_robot
-
-    out = {}
-    for name, (path, servo) in ROBOTS.items():
-        directory = tmp_path_factory.mktemp("robots") / name
-        import_robot(path, directory, servo_models={"*": servo})
-        out[name] = load_robot(directory)
-    return out
+# ``imported``: the published robots (../shared/robots), imported once per session (sim_tests/conftest.py)
 
 
 def _role(robot, role: str, q: dict[str, float]) -> float:  # type: ignore[no-untyped-def]
@@ -115,19 +98,17 @@ def test_adaptation_offsets_are_role_values() -> None:
     assert dict(kfs[0].joints) == dict(spec.keyframes[0].joints)  # before the push: unchanged
 
 
-@needs_shared
 def test_mesh_statics_use_vertices(imported) -> None:  # type: ignore[no-untyped-def]
     """Bez1's collision meshes: its standing posture is on its feet alone (a mesh's bounding box
     would put its shins on the ground)."""
-    robot = imported["bez1"]
+    robot = imported["bez1"].robot
     st = Statics(robot)
     st.place(np.asarray(robot.stand_qpos[7:], dtype=float))
     assert st.lowest(st.other_geoms) > 0.02
 
 
-@needs_shared
 def test_collision_free_opens_a_knee_the_body_cannot_flex_that_far(imported) -> None:  # type: ignore[no-untyped-def]
-    robot = imported["bez1"]
+    robot = imported["bez1"].robot
     goals = robot.roles.joint_goals({f"{s}.{r}": v for s in ("left", "right") for r, v in (("hip_pitch", -1.7), ("knee", 2.6), ("ankle_pitch", -1.2))})
     spec = next(s for s in motion_specs(robot) if s.name == "prone_knees_first")
     start = settle(robot, spec.lying, spec.lying_joints)
@@ -143,10 +124,9 @@ def test_collision_free_opens_a_knee_the_body_cannot_flex_that_far(imported) -> 
     assert not notes and dict(same[0].joints) == stand
 
 
-@needs_shared
 @pytest.mark.slow
 def test_adapt_to_body_is_deterministic(imported) -> None:  # type: ignore[no-untyped-def]
-    robot, reference = imported["wolfgang"], load_robot()
+    robot, reference = imported["wolfgang"].robot, load_robot()
     strategy = next(s for s in load_strategies() if s.name == "prone_knees_first")
     spec, ref_spec = motion_specs(robot, (strategy,))[0], motion_specs(reference, (strategy,))[0]
     start = settle(robot, spec.lying, spec.lying_joints)

@@ -17,24 +17,11 @@ from robot_rise.posture import stand_posture
 from robot_rise.robot_import import import_robot, infer_roles
 from robot_rise.roles import ROLES, mirror_role_values
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "robots"
-ROBOTS = {"wolfgang": (SHARED / "wolfgang" / "wolfgang.xml", "MX-106"), "bez1": (SHARED / "bez1" / "bez1.xml", "MX-28")}
-needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/robots not beside the repository")
+# the published robots (sim_tests/conftest.py: ``shared_robots``, ``imported``: each imported once per session)
+PUBLISHED = ("bez1", "wolfgang")
 
 
-@pytest.fixture(scope="module")
-def imported(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    if not SHARED.is_dir():
-        pytest.skip("../shared/robots not beside the repository")
-    out = {}
-    for name, (path, servo) in ROBOTS.items():
-        directory = tmp_path_factory.mktemp("robots") / name
-        out[name] = (import_robot(path, directory, servo_models={"*": servo}), load_robot(directory))
-    return out
-
-
-@needs_shared
-@pytest.mark.parametrize("name", sorted(ROBOTS))
+@pytest.mark.parametrize("name", PUBLISHED)
 def test_import_writes_a_robot_that_loads_composes_and_stands(imported, name: str) -> None:  # type: ignore[no-untyped-def]
     result, robot = imported[name]
     assert robot.name == name and robot.roles is not None
@@ -49,7 +36,6 @@ def test_import_writes_a_robot_that_loads_composes_and_stands(imported, name: st
             assert f"{side}.{role}" in have, (name, side, role)
 
 
-@needs_shared
 def test_bez1_has_no_shoulder_roll_and_says_so(imported) -> None:  # type: ignore[no-untyped-def]
     result, robot = imported["bez1"]
     assert set(robot.roles.missing_roles()) == {"left.shoulder_roll", "right.shoulder_roll"}
@@ -73,12 +59,11 @@ def _sole(m: mujoco.MjModel, d: mujoco.MjData, robot, side: int) -> np.ndarray: 
     return d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, robot.sole_sites[side])].copy()
 
 
-@needs_shared
 @pytest.mark.parametrize("name", ["op3", "wolfgang", "bez1"])
 def test_a_role_means_the_same_movement_on_every_robot(imported, name: str) -> None:  # type: ignore[no-untyped-def]
     """Knee flexion moves the foot backward, hip roll moves it outward, hip yaw turns the toes out,
     and a symmetric role posture is a mirror-symmetric body (the signs of both sides agree)."""
-    robot = load_robot() if name == "op3" else imported[name][1]
+    robot = load_robot() if name == "op3" else imported[name].robot
     m, d = _fk(robot, {})
     base = [_sole(m, d, robot, s) for s in (0, 1)]  # soles: left, right
     for side, k in (("left", 0), ("right", 1)):
@@ -108,9 +93,8 @@ def test_the_op3_roles_in_robot_toml_are_what_the_import_infers() -> None:
     assert not robot.roles.missing_roles()
 
 
-@needs_shared
-def test_a_servo_map_gives_ids_models_and_limits(tmp_path: Path) -> None:
-    path, _ = ROBOTS["bez1"]
+def test_a_servo_map_gives_ids_models_and_limits(shared_robots, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    path, _ = shared_robots["bez1"]
     spec = mujoco.MjSpec.from_file(str(path))
     joints = [j.name for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_HINGE]
     rows = "\n".join(
@@ -161,9 +145,8 @@ def test_bad_models_fail_in_one_line_and_write_nothing(tmp_path: Path, xml: str,
     assert [p.name for p in tmp_path.iterdir()] == ["model.xml"]  # no scratch directory left
 
 
-@needs_shared
-def test_bad_servo_inputs_fail_in_one_line(tmp_path: Path) -> None:
-    path, _ = ROBOTS["wolfgang"]
+def test_bad_servo_inputs_fail_in_one_line(shared_robots, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    path, _ = shared_robots["wolfgang"]
     with pytest.raises(ConfigError, match="unknown servo model 'XM999'"):
         import_robot(path, tmp_path / "a", servo_models={"*": "XM999"})
     with pytest.raises(ConfigError, match="--servo-model names joints the model lacks: no_such_joint"):
@@ -182,9 +165,8 @@ def test_bad_servo_inputs_fail_in_one_line(tmp_path: Path) -> None:
     assert not any((tmp_path / n).exists() for n in "abcd")
 
 
-@needs_shared
-def test_cli_import_prints_every_inference_and_exits_0(tmp_path: Path) -> None:
-    path, _ = ROBOTS["bez1"]
+def test_cli_import_prints_every_inference_and_exits_0(shared_robots, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    path, _ = shared_robots["bez1"]
     out = tmp_path / "bez1"
     r = subprocess.run(
         [sys.executable, "-m", "robot_rise", "robot", "import", str(path), "--out", str(out), "--servo-model", "MX-28", "--servo-model", "head_yaw=XL430-W250"],
@@ -199,13 +181,12 @@ def test_cli_import_prints_every_inference_and_exits_0(tmp_path: Path) -> None:
     assert stand_posture(robot).robot == "bez1"
 
 
-def test_no_joint_name_of_any_robot_appears_in_the_product_code() -> None:
+def test_no_joint_name_of_any_robot_appears_in_the_product_code(published_models) -> None:  # type: ignore[no-untyped-def]
     """Issue 15: joint roles, not joint names (the OP3's, and the two imported robots')."""
     names = set(load_robot().joint_names)
-    for path, _ in ROBOTS.values():
-        if path.is_file():
-            m = mujoco.MjSpec.from_file(str(path)).compile()
-            names |= {m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE}
+    for path, _ in published_models.values():
+        m = mujoco.MjSpec.from_file(str(path)).compile()
+        names |= {m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE}
     root = Path(__file__).resolve().parents[1]
     hits = []
     for f in [*(root / "robot_rise").rglob("*.py"), *(root / "drivers").rglob("*.py")]:
@@ -215,7 +196,6 @@ def test_no_joint_name_of_any_robot_appears_in_the_product_code() -> None:
     assert all("." in r for r in ROLES)
 
 
-@needs_shared
 def test_an_imported_robot_goes_through_sample_check_report_and_the_twin(imported, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """Issue 15: the commands take --robot DIR for an imported robot (the HTML report names it)."""
     from robot_rise.trajectory import Trajectory, write_trajectory

@@ -38,6 +38,7 @@ from scipy.optimize import brentq
 from robot_rise.authoring.keyframes import Keyframe, build_trajectory
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET
 from robot_rise.model import Robot, compose, model_index
+from robot_rise.placement import place_on_soles
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player
 from robot_rise.sim.standing import StandVerdict, judge
@@ -103,19 +104,10 @@ class Statics:
         return False
 
     def place(self, q: np.ndarray) -> None:
-        d, m, idx = self.d, self.m, self.idx
-        d.qpos[idx.qpos_root] = [0, 0, 0, 1, 0, 0, 0]
-        d.qpos[idx.qpos_joints] = q
-        mujoco.mj_kinematics(m, d)
-        R = d.site_xmat[self.soles[0]].reshape(3, 3)  # first sole's frame in the root frame
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, (self.sole_zero @ R.T).ravel())  # root turned so the sole is as at zero pose
-        d.qpos[idx.qpos_root[3:]] = quat
-        mujoco.mj_kinematics(m, d)
-        z = min(d.site_xpos[s][2] for s in self.soles)
-        d.qpos[idx.qpos_root[2]] = -z
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
+        """Joint angles ``q`` [rad], shape (n_joints,), with the soles flat on z = 0: the root turned
+        so the first sole is as at the zero pose (a keyframe's joints may tilt the soles)."""
+        self.d.qpos[self.idx.qpos_joints] = q
+        place_on_soles(self.m, self.d, self.idx.qpos_root, self.soles, flat_sole_xmat=self.sole_zero)
 
     def points(self, g: int) -> np.ndarray:
         """World points bounding geom ``g``: a mesh's vertices, else the corners of its oriented bounding box."""

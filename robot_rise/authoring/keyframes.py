@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from robot_rise.library.strategies import KeyframedMotion
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
@@ -30,35 +31,17 @@ class Keyframe:
     joints: Mapping[str, float]
 
 
-@dataclass(frozen=True)
-class MotionSpec:
-    """One library motion as authored.
+@dataclass(frozen=True, kw_only=True)
+class MotionSpec(KeyframedMotion[Keyframe]):
+    """One library motion as authored: a strategy mapped onto a robot's joints.
 
-    Attributes:
-        name: file stem and CLI name.
-        lying: ``supine``, ``prone``, ``left`` or ``right``.
-        strategy: one line for people.
+    Attributes (besides those of :class:`~robot_rise.library.strategies.KeyframedMotion`):
+        strategy: one line for people (the strategy's description).
         lying_joints: joint angles of the lying posture before settling [rad].
-        keyframes: goals after t = 0, increasing in time.
-        connect_keyframe: index into ``keyframes`` of the keyframe that ends the lying-to-sitting/
-            squatting phase (its time, after retiming, is written as ``connect_until_s``).
-        lying_yaw_rad: yaw of the lying posture [rad].
-        retime: find the timing in MuJoCo (:func:`robot_rise.authoring.retiming.retime`); False keeps the keyframe times (a
-            dynamic motion whose momentum depends on them).
-        clamp_lead: pass the trajectory through
-            :func:`robot_rise.authoring.goal_lead.clamp_goal_lead` (for a motion authored
-            with saturating servos: its goals are pulled back to what the servos can follow).
     """
 
-    name: str
-    lying: str
     strategy: str
     lying_joints: Mapping[str, float]
-    keyframes: tuple[Keyframe, ...]
-    connect_keyframe: int
-    lying_yaw_rad: float = 0.0
-    retime: bool = True
-    clamp_lead: bool = False
 
 
 def build_trajectory(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...], *, row_hz: float = ROW_HZ) -> Trajectory:

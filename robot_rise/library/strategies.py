@@ -18,6 +18,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Generic, TypeVar
 
 from robot_rise.errors import ConfigError, FormatError
 from robot_rise.library.motions import LYING_KINDS
@@ -25,7 +26,16 @@ from robot_rise.model import Robot
 from robot_rise.paths import configs_dir
 from robot_rise.roles import EXTRA, ROLES
 
-__all__ = ["STRATEGY_FORMAT", "Strategy", "RoleKeyframe", "read_strategy", "load_strategies", "default_strategies_dir", "joint_keyframes"]
+__all__ = [
+    "STRATEGY_FORMAT",
+    "KeyframedMotion",
+    "Strategy",
+    "RoleKeyframe",
+    "read_strategy",
+    "load_strategies",
+    "default_strategies_dir",
+    "joint_keyframes",
+]
 
 STRATEGY_FORMAT = "robot-rise/strategy@1"
 
@@ -38,19 +48,49 @@ class RoleKeyframe:
     roles: Mapping[str, float]
 
 
-@dataclass(frozen=True)
-class Strategy:
-    """One get-up strategy (see the module docstring). Times are a shape; most are found in simulation."""
+K = TypeVar("K")  # a keyframe: RoleKeyframe (role values) or a robot's joint goals
+
+
+@dataclass(frozen=True, kw_only=True)
+class KeyframedMotion(Generic[K]):
+    """A get-up motion as keyframes, whatever its values are written in: what a :class:`Strategy`
+    (role values) and the same motion mapped onto a robot's joints
+    (:class:`robot_rise.authoring.keyframes.MotionSpec`) both are. Keyword-only fields.
+
+    Attributes:
+        name: file stem and CLI name.
+        lying: ``supine``, ``prone``, ``left`` or ``right``.
+        keyframes: goals after t = 0, increasing in time.
+        connect_keyframe: index into ``keyframes`` of the keyframe that ends the lying-to-sitting/
+            squatting phase (its time, after retiming, is written as ``connect_until_s``).
+        lying_yaw_rad: yaw of the lying posture [rad].
+        retime: find the timing in MuJoCo (:func:`robot_rise.authoring.retiming.retime`); False keeps the keyframe times (a
+            dynamic motion whose momentum depends on them).
+        clamp_lead: pass the trajectory through
+            :func:`robot_rise.authoring.goal_lead.clamp_goal_lead` (for a motion authored
+            with saturating servos: its goals are pulled back to what the servos can follow).
+    """
 
     name: str
     lying: str
-    description: str
-    lying_roles: Mapping[str, float]
-    keyframes: tuple[RoleKeyframe, ...]
+    keyframes: tuple[K, ...]
     connect_keyframe: int
     lying_yaw_rad: float = 0.0
     retime: bool = True
     clamp_lead: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class Strategy(KeyframedMotion[RoleKeyframe]):
+    """One get-up strategy (see the module docstring). Times are a shape; most are found in simulation.
+
+    Attributes (besides those of :class:`KeyframedMotion`):
+        description: one line for people.
+        lying_roles: role values of the lying posture before settling [rad].
+    """
+
+    description: str
+    lying_roles: Mapping[str, float]
 
 
 def default_strategies_dir() -> Path:

@@ -37,6 +37,7 @@ import numpy as np
 
 from robot_rise.live.fall import LyingKind
 from robot_rise.model import Robot, compose, model_index
+from robot_rise.placement import lowest_point_at
 from robot_rise.posture import Posture, posture_from_qpos
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import ValidityChecker
@@ -273,15 +274,14 @@ class PostureEstimator:
         qpos[idx.qpos_root[:3]] = [float(xy_m[0]), float(xy_m[1]), 1.0]
         qpos[idx.qpos_root[3:]] = root_quat_from_up(up, yaw_rad)
         qpos[idx.qpos_joints] = q_joints
-        qpos[idx.qpos_root[2]] += cfg.drop_clearance_m - self.checker.lowest_point_z(qpos)
+        qpos = lowest_point_at(self.checker, qpos, cfg.drop_clearance_m)
         rest, settled, settle_s = self._settle(qpos, q_joints)
         rest[idx.qpos_root[3:]] /= np.linalg.norm(rest[idx.qpos_root[3:]])
         rest[idx.qpos_joints] = q_joints  # the measured angles (the stiff servos sag a few mrad)
         change = _angle_deg(up_of_quat(rest[idx.qpos_root[3:]]), up)
         if change > cfg.max_settle_turn_deg:  # rested elsewhere than the robot: keep the IMU's tilt
             log.info("posture estimate: the settle turned the body %.1f deg from the IMU's up; keeping the IMU's", change)
-            rest = qpos.copy()
-            rest[idx.qpos_root[2]] -= self.checker.lowest_point_z(rest)
+            rest = lowest_point_at(self.checker, qpos)
             settled = False
         rest, valid = self._lift_if_penetrating(rest)
         posture = posture_from_qpos(robot, idx, rest)

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from scipy.optimize import brentq
 
+from robot_rise.placement import place_on_soles
 from robot_rise.robot_import.roles import subtree_geoms
 from robot_rise.roles import EXTRA, RoleMap
 
@@ -46,18 +47,17 @@ def _role_pose(roles: RoleMap, a: float, t: float) -> dict[str, float]:
     return roles.joint_goals(values)
 
 
-def _place(m: mujoco.MjModel, d: mujoco.MjData, free_qpos: int, joint_q: dict[int, float], soles: tuple[int, int]) -> float:
-    """Set the pose with the root upright, soles on z = 0; returns the lowest point of the robot."""
+def _place(m: mujoco.MjModel, d: mujoco.MjData, free_qpos: int, joint_q: dict[int, float], soles: tuple[int, int]) -> None:
+    """Set the pose (joints not in ``joint_q`` at ``qpos0``) with the root upright, soles on z = 0."""
     d.qpos[:] = m.qpos0
-    d.qpos[free_qpos : free_qpos + 7] = [0, 0, 0, 1, 0, 0, 0]
     for adr, q in joint_q.items():
         d.qpos[adr] = q
-    mujoco.mj_kinematics(m, d)
-    sole_z = min(d.site_xpos[s][2] for s in soles)
-    d.qpos[free_qpos + 2] = -sole_z
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
-    return sole_z
+    # The root stays upright (no ``flat_sole_xmat``), unlike the adaptation's statics, which turn
+    # it to flatten soles that a keyframe tilts: a candidate's leg pitches cancel (hip -a-t, knee
+    # 2a, ankle -a+t), so its soles keep the neutral pose's attitude, and the standing keyframe is
+    # searched and written with the root upright; turning the root would change every imported
+    # robot's stand keyframe (and its digest).
+    place_on_soles(m, d, np.arange(free_qpos, free_qpos + 7), soles)
 
 
 def _com_margin(m: mujoco.MjModel, d: mujoco.MjData, root_body: int, foot_geoms: list[int]) -> tuple[float, float]:
