@@ -497,6 +497,8 @@ class Executor:
         except (Exception, KeyboardInterrupt):  # noqa: BLE001 - stopping must go on with what we have
             now_fb = fb
         hold = np.where(now_fb.valid, now_fb.position_rad, fb.position_rad) if hold_rad is None else hold_rad
+        # a joint the body pushed past its stop reads a tick beyond the limit: the hold goal must not follow it
+        hold = np.clip(hold, self.limits.lower_rad, self.limits.upper_rad)
         ok = np.isfinite(hold)
         skip = [sid for sid, good in zip(group.ids, ok) if not good]
         step("holding the present posture", lambda: group.write_goals(np.where(ok, hold, 0.0), skip=skip))

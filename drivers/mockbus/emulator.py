@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, replace
 
 from drivers.clock import Clock, MonotonicClock
 from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
@@ -115,6 +115,9 @@ class MockBus:
         self.packets_received = 0
         self.log: list[Packet] = []  # every instruction packet received (bounded)
         self._log_limit = 10000
+        # called with (arrival time [s], packet) for every instruction packet received, unbounded
+        # (a spy that checks every goal a long run writes; the log above keeps the first 10000)
+        self.packet_listeners: list[Callable[[float, Packet], None]] = []
 
     # ---- time ------------------------------------------------------------------------
     def advance(self, now_s: float | None = None) -> None:
@@ -146,8 +149,13 @@ class MockBus:
                 self.servos[sid].raise_hardware_error(bits)
             del self.faults.pending_hardware_errors[sid]
         commands = {sid: s.command() for sid, s in self.servos.items()}
-        motions = self.plant.advance(dt, commands)
         stuck = self.faults.stuck_ids
+        # a blocked shaft does not move, powered or not: the plant (the physics twin) is asked to
+        # hold it where it was blocked, so the body agrees with what the servo reports
+        to_plant = commands if not stuck else {
+            sid: replace(c, torque_on=True, goal_rad=self.servos[sid].position_rad, pwm_fraction=1.0)
+            if sid in stuck else c for sid, c in commands.items()}
+        motions = self.plant.advance(dt, to_plant)
         for sid, s in self.servos.items():
             m = motions.get(sid)
             if sid in stuck:  # blocked shaft: no motion; the motor pushes toward its goal
@@ -181,6 +189,8 @@ class MockBus:
             self.packets_received += 1
             if len(self.log) < self._log_limit:
                 self.log.append(packet)
+            for listener in self.packet_listeners:
+                listener(now, packet)
             if self.wire_timing:
                 t_free += wire_time_s(len(frame), self.baud_rate)
             for sid, reply in self._handle(packet, now):

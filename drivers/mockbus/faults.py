@@ -36,8 +36,8 @@ class FaultInjector:
             ``deaf`` is False.
         deaf_ids: servos that ignore every packet (no writes applied either).
         stuck_ids: servos whose shaft is blocked (an obstacle, a jammed gear): they answer, but
-            the shaft does not move and the motor pushes toward its goal (up to stall torque,
-            heating up).
+            the shaft does not move (the plant, e.g. the physics twin, holds the joint where it
+            was blocked) and the motor pushes toward its goal (up to stall torque, heating up).
         drop_probability: chance that a status packet is not sent.
         corrupt_probability: chance that one byte of a status packet is flipped.
         truncate_probability: chance that a status packet is cut short.

@@ -8,9 +8,25 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+from typing import TYPE_CHECKING
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
 from robot_rise.errors import RobotRiseError
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from robot_rise.bench.live_faults import FaultRig, OpenRig
+    from robot_rise.posture import Posture
+
+LIVE_FAULTS_EPILOG = """example:
+  robot-rise bench live-faults --trials 5 --seed 0
+The twin lies down (supine, prone, left, right in turn) and getup runs on the emulated bus; at a
+random 20-70 % of the first get-up it executes, one fault strikes a servo among those moving
+fastest then, or the IMU: servo-silent (the servo stops answering), overload (it raises its
+Overload error: its firmware cuts its torque), blocked (its shaft stops moving), imu-silent (the
+OpenCR at ID 200 stops answering). Every goal on the bus is checked against the servo map's limits.
+"""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -70,6 +86,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--json", action="store_true", help="print every case as JSON")
     add_robot_args(e, scene=False)
     e.set_defaults(func=run_environments)
+    from robot_rise.bench.live_faults import LiveFault
+
+    f = bsub.add_parser("live-faults", help="faults injected while the live get-up rises on the twin: stopped safely, "
+                        "in limits, reason given", formatter_class=Formatter, epilog=LIVE_FAULTS_EPILOG)
+    f.add_argument("--trials", type=int, default=3, help="trials per fault kind (default: 3)")
+    f.add_argument("--seed", type=int, default=0, help="first seed: start posture, IMU noise, fault time (default: 0)")
+    f.add_argument("--kind", action="append", choices=[k.value for k in LiveFault],
+                   help="fault kind(s) (default: all four)")
+    f.add_argument("--budget", type=float, default=5.0, help="planning budget per candidate motion [s] (default: 5)")
+    f.add_argument("--json", action="store_true", help="print every trial and the summary as JSON")
+    add_robot_args(f, scene=False)
+    f.set_defaults(func=run_live_faults)
     import robot_rise.cli as cli_pkg
 
     for info in pkgutil.iter_modules(cli_pkg.__path__):
@@ -173,3 +201,64 @@ def run_environments(args: argparse.Namespace) -> int:
     else:
         print(environments_table(results))
     return 0
+
+
+def run_live_faults(args: argparse.Namespace) -> int:
+    from robot_rise.bench.live_faults import (
+        FaultTrial,
+        LiveFault,
+        live_fault_trials,
+        live_faults_table,
+        summarize_live_faults,
+    )
+    from robot_rise.cli._common import Progress
+
+    if args.trials < 1:
+        raise RobotRiseError(f"--trials {args.trials}: at least 1")
+    robot = load_robot_arg(args)
+    kinds = [LiveFault(k) for k in dict.fromkeys(args.kind)] if args.kind else list(LiveFault)
+    progress = Progress("faults", args.trials * len(kinds))
+    done: list[FaultTrial] = []
+
+    def on_trial(t: FaultTrial) -> None:
+        done.append(t)
+        progress(len(done))
+
+    trials = live_fault_trials(_fault_rig_opener(args), robot, kinds=kinds, trials=args.trials, seed=args.seed,
+                               on_trial=on_trial)
+    summary = summarize_live_faults(trials)
+    if args.json:
+        print_json({"robot": robot.name, "seed": args.seed, "trials_per_kind": args.trials, "summary": summary,
+                    "trials": [t.to_dict() for t in trials]})
+    else:
+        print(live_faults_table(summary))
+    # a trial where no get-up was executed (none proven) struck nothing: it fails no safety figure
+    return 0 if all((t.stopped_safely or not t.mid_rise) and not t.out_of_limit for t in trials) else 1
+
+
+def _fault_rig_opener(args: argparse.Namespace) -> OpenRig:
+    """The live session of ``getup --mock --twin`` as a ``robot_rise.bench.live_faults.OpenRig``."""
+    import contextlib
+
+    import drivers.mockbus as mb
+    from robot_rise.bench.live_faults import FaultRig
+    from robot_rise.cli.cmd_getup import open_live_session
+
+    @contextlib.contextmanager
+    def open_rig(start: Posture, seed: int) -> Iterator[FaultRig]:
+        live = argparse.Namespace(mock=True, twin=True, port=None, robot=args.robot, scene="flat", baud=None,
+                                  seed=seed, budget=args.budget)
+        name = None
+        try:
+            with open_live_session(live, start=start) as s:
+                name = s.io.connection.url.removeprefix("dxlsim://")
+                bus, twin = mb.attached(name), s.twin
+                if bus is None or twin is None:
+                    raise RobotRiseError("the live session has no emulated bus with a twin")
+                yield FaultRig(s.io, s.planner, s.estimator, bus, s.io.map, s.truth,
+                               upright=lambda: bool(twin.state().upright))
+        finally:
+            if name is not None:
+                mb.detach(name)  # the bus holds the twin: let both go
+
+    return open_rig

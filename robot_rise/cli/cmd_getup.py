@@ -176,7 +176,9 @@ class BusRobotIO:
             engage(self.group, watchdog_s=WATCHDOG_S)
         except (DriverError, RobotRiseError) as e:
             return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
-        config = ExecutorConfig(stop_policy=StopPolicy.HOLD, expected=expected,
+        # no automatic reboot of a servo that shut down on a hardware error: rebooting clears the
+        # error, and the health check before the next try is what must see it (and refuse)
+        config = ExecutorConfig(stop_policy=StopPolicy.HOLD, expected=expected, recovery_attempts=0,
                                 cpu_latency_us=None if self.simulated else 0)
         first = self.now_s()
         try:
@@ -186,8 +188,14 @@ class BusRobotIO:
             return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
         self._disarm()
         self.executions.append(rep)
-        reason = "; ".join(f"{f.kind.value}: {f.message}" for f in rep.faults)
+        reason = "; ".join(f"{f.kind.value} at {self._fault_site(f.index)}: "
+                           f"{f.message.removeprefix(f'joint {f.index}: ')}" for f in rep.faults)
         return ExecutionResult(rep.completed, first, self.now_s(), reason, rep.interrupted)
+
+    def _fault_site(self, index: int) -> str:
+        """Which servo an executor fault is about (its index is in map order; -1: the bus)."""
+        servos = self.map.servos
+        return servos[index].label if 0 <= index < len(servos) else "the bus"
 
     def _disarm(self) -> None:
         from drivers.errors import CommunicationError
