@@ -8,6 +8,7 @@ result lists every attempt and why it failed.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import time
@@ -64,6 +65,7 @@ DEFAULT_CANDIDATE_RANK = "duration"  # the quickest expected get-up first, the n
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
+MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): slower is the next candidate's turn
 KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
 
 
@@ -260,6 +262,8 @@ def rise(
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
     """
     say = progress or (lambda s: None)
+    if filter_config.max_stretch is None:
+        filter_config = dataclasses.replace(filter_config, max_stretch=MAX_STRETCH)
     start = admit_posture(start, robot, where="start posture")
     if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
         context = RiseContext.build(robot, scene, library)

@@ -193,14 +193,7 @@ def _fastest(kind: str):
     return min(motions, key=lambda m: m.duration_s)
 
 
-_NO_FAST_SUPINE = pytest.mark.xfail(
-    strict=True,
-    reason="issue 14: supine_situp_rock (2.81 s) falls under 2 of 19 ensemble variants (friction 1.2, shapes +3 mm) and "
-    "slowing cannot save a momentum sit-up, so it left the library; a robust fast supine motion is issue 17's",
-)
-
-
-@pytest.mark.parametrize("kind, stock_s", [pytest.param("supine", STOCK_BACK_S, marks=_NO_FAST_SUPINE), ("prone", STOCK_FRONT_S)])
+@pytest.mark.parametrize("kind, stock_s", [("supine", STOCK_BACK_S), ("prone", STOCK_FRONT_S)])
 def test_the_fastest_motion_of_a_lying_kind_is_no_slower_than_the_stock_op3_get_up(kind: str, stock_s: float) -> None:
     """Issue 4/6: from the back (stock OP3 3.6 s) and the front (3.0 s) no slower, commanded and standing."""
     m = _fastest(kind)
@@ -209,7 +202,6 @@ def test_the_fastest_motion_of_a_lying_kind_is_no_slower_than_the_stock_op3_get_
     assert v.standing and v.stood_from_s <= stock_s, (m.name, v.stood_from_s)
 
 
-@_NO_FAST_SUPINE
 def test_supine_motions_include_a_sit_up_that_never_turns_over_and_a_roll_over() -> None:
     """Issue 4: >= 2 supine strategies, e.g. sit-up and roll-over: one never lies prone on its way
     up (root orientation from the simulated rows), another rolls over onto the front."""

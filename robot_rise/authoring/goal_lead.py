@@ -1,7 +1,7 @@
 """Goal-lead clamping: the goals of a saturating (momentum) motion pulled back to what the servos can follow within the envelope.
 
 Motions that need their momentum (``MotionSpec.retime=False``, ``clamp_lead=True``:
-supine_situp_rock, prone_elbow_knees_quick) keep their searched keyframe times;
+supine_situp_rock_robust, prone_elbow_knees_quick) keep their searched keyframe times;
 :func:`clamp_goal_lead` cuts their torque peaks on all five robustness players instead.
 """
 

@@ -95,7 +95,7 @@ class RiseCase:
     seconds: dict[str, float] | None = None  # where the wall time went: plan, filter (nominal), ensemble
     stood_from_s: float = float("nan")  # when the final standing stretch began (the judge) [s]
     # where the robot's time went [s]: the planned approach, the library motion from the connecting
-    # frame on, and what the filter added by slowing (duration - approach - library)
+    # frame on, and the rest: the blend at the join and what the filter added by slowing
     robot_time: dict[str, float] | None = None
 
 
@@ -146,14 +146,14 @@ def _rise_case(args: tuple) -> RiseCase:
 
 
 def _robot_time(library, report, duration_s: float) -> dict[str, float] | None:
-    """Approach, library part and filter slowing of a proven rise [s] (None if not a library join,
+    """Approach, library part, and join blend plus filter slowing of a proven rise [s] (None if not a library join,
     e.g. a recovery after a failed first attempt)."""
     if "recovery" in report or "motion" not in report or "connecting_frame" not in report:
         return None
     tr = library.get(str(report["motion"])).trajectory
     approach = float(report.get("plan_duration_s", 0.0))
     rest = float(tr.duration_s - tr.t[int(report["connecting_frame"])])
-    return {"approach": approach, "library": rest, "slowed": max(0.0, duration_s - approach - rest)}
+    return {"approach": approach, "library": rest, "blend_and_slowing": max(0.0, duration_s - approach - rest)}
 
 
 def _seconds(result, report) -> dict[str, float]:
@@ -243,7 +243,7 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             if timed:
                 row[f"{stage}_median_s"] = float(np.median([t.get(stage, 0.0) for t in timed]))
         split = [c.robot_time for c in ok if c.robot_time]
-        for part in ("approach", "library", "slowed"):
+        for part in ("approach", "library", "blend_and_slowing"):
             if split:
                 row[f"{part}_median_s"] = float(np.median([t[part] for t in split]))
         measured = [c for c in ok if c.variants]

@@ -35,6 +35,11 @@ class FilterConfig:
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].
+        max_stretch: the nominal filter stops slowing at this multiple of the commanded duration
+            (None: only ``max_duration_s``). ``rise`` sets it: a get-up that needs more slowing is
+            not the quick one its candidate promised (a momentum motion slowed falls anyway), and
+            the next candidate is cheaper to try than more iterations of ever longer replays. The
+            ensemble's rounds keep ``max_duration_s`` (on a slope the variants need the slower stance).
         ensemble: prove on every model variant too (``robot_rise.sim.variants.ENSEMBLE``).
         ensemble_rounds: times a motion some variant falls with is slowed and proven again.
     """
@@ -53,5 +58,6 @@ class FilterConfig:
     max_iterations: int = 6
     hold_s: float = 3.0
     max_duration_s: float = 30.0
+    max_stretch: float | None = None
     ensemble: bool = True
     ensemble_rounds: int = 3

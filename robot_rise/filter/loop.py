@@ -257,7 +257,8 @@ def _nominal_filter(
         if not windows:
             break
         stretched = time_scale(current, windows, config.slow_factor)
-        if stretched.duration_s > config.max_duration_s:
+        cap = config.max_duration_s if config.max_stretch is None else min(config.max_duration_s, config.max_stretch * commanded.duration_s)
+        if stretched.duration_s > cap:
             break
         current = stretched
     assert last is not None
