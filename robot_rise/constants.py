@@ -79,6 +79,17 @@ ROOT_ANGULAR_SPEED_LIMIT_RAD_S = 4.0
 ROOT_ACCEL_LIMIT_M_S2 = 3.0
 ROOT_ANGULAR_ACCEL_LIMIT_RAD_S2 = 20.0
 
+# Ours: the cautious timing of earlier rounds (uniform 20 rad/s^2; the root at 0.3 m/s, 1 m/s^2,
+# 2 rad/s, 6 rad/s^2), tried when a fast approach threw the body somewhere the plan did not go
+# (robot_rise/rise.py): 300 postures, seed 1, fast timing alone: 4 side postures knocked onto
+# their backs that the cautious timing had got up.
+CAUTIOUS_JOINT_ACCEL_RAD_S2 = 20.0
+CAUTIOUS_ROOT_SPEED_M_S = 0.3
+CAUTIOUS_ROOT_ACCEL_M_S2 = 1.0
+CAUTIOUS_ROOT_ANGULAR_SPEED_RAD_S = 2.0
+CAUTIOUS_ROOT_ANGULAR_ACCEL_RAD_S2 = 6.0
+APPROACH_OFF_PLAN_RAD = 0.5  # the body's gravity direction this far from the planned one at the end of the approach: off plan
+
 # --- Energy-driven planner (robot_rise/planning/energy/, issue 7; paper 004) ---------------------
 ENERGY_FALLOFF_D = 3  # fall-off exponent d of eq. (1); paper: d between 2 and 5 (004 sections 7.2, 8)
 ENERGY_EXTERNAL_EXPONENT = 2  # exponent of the external term, eq. (2)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from robot_rise.constants import APPROACH_OFF_PLAN_RAD
 from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import (
     COMMAND_LIMITS_KEY,
@@ -41,7 +42,8 @@ from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.space import PostureSpace
-from robot_rise.planning.to_trajectory import plan_trajectory
+from robot_rise.planning.timing import TimingLimits, time_parameterize
+from robot_rise.planning.to_trajectory import plan_trajectory, timed_to_trajectory
 from robot_rise.posture import Posture, admit_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
@@ -59,13 +61,13 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-DEFAULT_CANDIDATES = 3  # library motions tried, nearest first
+DEFAULT_CANDIDATES = 3  # library motions tried: the quickest, then the two nearest (connection_candidates)
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
 DEFAULT_CANDIDATE_RANK = "duration"  # the quickest expected get-up first, the nearest next (issue 17; connection_candidates)
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
 RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
-MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): slower is the next candidate's turn
+MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): a library motion slowed more is the next candidate's turn
 KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
 
 
@@ -316,7 +318,18 @@ def rise(
             plan_rows=len(planned.trajectory.t),
         )
         result = dynamics_filter(robot, commanded, scene=scene, config=filter_config, start=start,
-                                 ensemble=context.ensemble() if filter_config.ensemble else None)
+                                 ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
+        if not result.proven and planned.smoothed is not None and _approach_off_plan(result, len(planned.trajectory.t)):
+            # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
+            say(f"filtering {conn.motion} with the cautious approach timing")
+            cautious = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
+                                           planned.trajectory.report)
+            slow = join_with_blend(cautious, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
+                **commanded.report, plan_duration_s=cautious.duration_s, plan_rows=len(cautious.t), approach_timing="cautious")
+            again = dynamics_filter(robot, slow, scene=scene, config=filter_config, start=start,
+                                    ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
+            if again.proven:
+                result = again
         t2 = time.monotonic()
         robust: dict[str, bool] = {}
         if result.proven:
@@ -354,6 +367,25 @@ def rise(
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _approach_off_plan(result: FilterResult, plan_rows: int) -> bool:
+    """The simulated body ended the planned approach lying otherwise than planned: its gravity
+    direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's."""
+    tr, rec = result.trajectory, result.recording
+    if tr.root is None or not 0 < plan_rows <= len(tr.t) or len(rec.t) == 0:
+        return False
+    k = min(int(np.searchsorted(rec.t, tr.t[plan_rows - 1])), len(rec.t) - 1)
+    return bool(_gravity_angle(rec.root_pose[k, 3:], tr.root[plan_rows - 1, 3:]) > APPROACH_OFF_PLAN_RAD)
+
+
+def _gravity_angle(qa: np.ndarray, qb: np.ndarray) -> float:
+    """Angle between the world's vertical seen from two root orientations (wxyz) [rad]: how
+    differently two bodies lie, whatever their heading."""
+    def down(q: np.ndarray) -> np.ndarray:
+        w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])  # R^T e_z
+    return float(np.arccos(np.clip(down(qa) @ down(qb), -1.0, 1.0)))
 
 
 def _rise_again_from_where_it_fell(

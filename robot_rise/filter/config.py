@@ -35,11 +35,14 @@ class FilterConfig:
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].
-        max_stretch: the nominal filter stops slowing at this multiple of the commanded duration
-            (None: only ``max_duration_s``). ``rise`` sets it: a get-up that needs more slowing is
-            not the quick one its candidate promised (a momentum motion slowed falls anyway), and
-            the next candidate is cheaper to try than more iterations of ever longer replays. The
-            ensemble's rounds keep ``max_duration_s`` (on a slope the variants need the slower stance).
+        max_stretch: the nominal filter stops slowing the library motion (from the filter's
+            ``join_row``; the whole trajectory without one) at this multiple of its commanded
+            duration (None: only ``max_duration_s``). ``rise`` sets it: a library motion that needs
+            more slowing is not the quick one its candidate promised (a momentum motion slowed
+            falls anyway), and the next candidate is cheaper to try than ever longer replays. The
+            approach before the join may be slowed as far as ``max_duration_s`` (a side posture
+            kept on its side), and so may the ensemble's rounds (on a slope the variants need
+            the slower stance).
         ensemble: prove on every model variant too (``robot_rise.sim.variants.ENSEMBLE``).
         ensemble_rounds: times a motion some variant falls with is slowed and proven again.
     """

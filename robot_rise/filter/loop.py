@@ -109,6 +109,7 @@ def dynamics_filter(
     protect_until_s: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
     ensemble: EnsembleReplayer | None = None,
+    join_row: int | None = None,
     command_limits: CommandLimits | None = None,
 ) -> FilterResult:
     """Reshape ``commanded`` until it stands the robot up within the servo limits on the nominal
@@ -121,6 +122,9 @@ def dynamics_filter(
         config: filter tuning (``config.ensemble`` switches the ensemble proof).
         start: the posture the robot really lies in (default: commanded.start).
         protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
+        join_row: the first row of the library motion (``join_with_blend``); with
+            ``config.max_stretch`` the motion from there on is slowed to at most that multiple of
+            its commanded duration (the approach before it as far as ``max_duration_s``).
         progress: called as progress(iteration, max_iterations).
         ensemble: the variants' players to reuse (default: built here when ``config.ensemble``).
         command_limits: what the executor will enforce (default: ``command_limits_for(robot)``):
@@ -136,7 +140,7 @@ def dynamics_filter(
         ensemble = EnsembleReplayer(robot, scene)
     limits = command_limits or command_limits_for(robot)
     result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
-                             progress=progress, limits=limits)
+                             progress=progress, limits=limits, join_row=join_row)
     rounds = 0
     recs: list[Recording] = []
     ensemble_s = 0.0
@@ -164,7 +168,7 @@ def dynamics_filter(
             break
         log.info("ensemble round %d: %d variants fall; slowing %d windows", rounds, len(failures), len(windows))
         again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
-                                start=start, protect_until_s=protect_until_s, progress=progress, limits=limits)
+                                start=start, protect_until_s=protect_until_s, progress=progress, limits=limits, join_row=join_row)
         if not again.proven:
             break
         result, recs = again, []
@@ -186,6 +190,7 @@ def _nominal_filter(
     protect_until_s: float,
     progress: Callable[[int, int], None] | None,
     limits: CommandLimits,
+    join_row: int | None = None,
 ) -> FilterResult:
     """The filter on the nominal model: reshape until proven there (the loop of the module docstring),
     the targets always within the executor's ``limits``."""
@@ -257,8 +262,7 @@ def _nominal_filter(
         if not windows:
             break
         stretched = time_scale(current, windows, config.slow_factor)
-        cap = config.max_duration_s if config.max_stretch is None else min(config.max_duration_s, config.max_stretch * commanded.duration_s)
-        if stretched.duration_s > cap:
+        if stretched.duration_s > config.max_duration_s or _overstretched(stretched, commanded, join_row, config.max_stretch):
             break
         current = stretched
     assert last is not None
@@ -278,3 +282,12 @@ def _nominal_filter(
     final = Trajectory(robot.name, current.joint_names, current.t, current.q, start, {**current.report, **full_report}, None)
     return FilterResult(ok, final, rec, verdict, proof, tuple(history), reason, full_report)
 
+
+def _overstretched(stretched: Trajectory, commanded: Trajectory, join_row: int | None, max_stretch: float | None) -> bool:
+    """The part from ``join_row`` on (the whole without one) slowed beyond ``max_stretch`` x its
+    commanded duration. Rows never move (slowing and conforming change times only), so the row
+    index marks the same posture in both."""
+    if max_stretch is None:
+        return False
+    row = 0 if join_row is None or not 0 <= join_row < len(commanded.t) else join_row
+    return stretched.t[-1] - stretched.t[row] > max_stretch * (commanded.t[-1] - commanded.t[row]) + 1e-9

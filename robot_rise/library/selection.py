@@ -79,7 +79,7 @@ def connection_candidates(
     motion's within ``MAX_ROLL_ONTO_FRONT_RAD``: a side rolls onto its front); motions
     ordered by the expected get-up through that frame (:func:`expected_getup_s`: the approach at the
     servos' speed plus the rest of the motion; issue 17: join the library where it pays), the
-    nearest frame overall kept as the runner-up.
+    two nearest motions kept as the runners-up.
     """
     index = index or FrameIndex.build(library, robot)
     joints = start.joint_vector(robot.joint_names)
@@ -111,10 +111,11 @@ def connection_candidates(
             i = int(rows[np.argmin(d[rows])])
             scored.append((float(expected[i]), index._connection(i, float(d[i]), int(rows.size))))
     quickest = [c for _, c in sorted(scored, key=lambda x: x[0])]
-    # the nearest stays the runner-up (if the quickest fails, the safest next), then the quick ones,
-    # then the nearest of the rest
+    # the two nearest stay the runners-up (if the quickest fails, the safest next: with a side
+    # free to roll onto its front, the next quickest is often another prone motion that fails
+    # the same way), then the other quick ones, then the nearest of the rest
     out: list[Connection] = []
-    for c in quickest[:1] + by_distance[:1] + quickest[1:] + by_distance[1:]:
+    for c in quickest[:1] + by_distance[:2] + quickest[1:] + by_distance[2:]:
         if all((c.motion, c.frame) != (o.motion, o.frame) for o in out) and all(c.motion != o.motion for o in out):
             out.append(c)
     return out[:k]

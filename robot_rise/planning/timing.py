@@ -29,6 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.constants import (
+    CAUTIOUS_JOINT_ACCEL_RAD_S2,
+    CAUTIOUS_ROOT_ACCEL_M_S2,
+    CAUTIOUS_ROOT_ANGULAR_ACCEL_RAD_S2,
+    CAUTIOUS_ROOT_ANGULAR_SPEED_RAD_S,
+    CAUTIOUS_ROOT_SPEED_M_S,
     JOINT_SPEED_FRACTION_OF_NO_LOAD,
     ROOT_ACCEL_LIMIT_M_S2,
     ROOT_ANGULAR_ACCEL_LIMIT_RAD_S2,
@@ -82,6 +87,13 @@ class TimingLimits:
         if joint_accel_rad_s2 is None:
             return cls(v, robot.joint_accel_limits_rad_s2(speed_fraction))
         return cls(v, np.full(robot.n_joints, float(joint_accel_rad_s2)))
+
+    @classmethod
+    def cautious(cls, robot: Robot) -> TimingLimits:
+        """The slower timing a rise falls back on when the fast approach went off plan."""
+        fast = cls.from_robot(robot, joint_accel_rad_s2=CAUTIOUS_JOINT_ACCEL_RAD_S2)
+        return cls(fast.joint_velocity_rad_s, fast.joint_accel_rad_s2, CAUTIOUS_ROOT_SPEED_M_S, CAUTIOUS_ROOT_ACCEL_M_S2,
+                   CAUTIOUS_ROOT_ANGULAR_SPEED_RAD_S, CAUTIOUS_ROOT_ANGULAR_ACCEL_RAD_S2)
 
 
 @dataclass(frozen=True)
