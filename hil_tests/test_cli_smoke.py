@@ -193,8 +193,14 @@ def test_that_read_posture_refuses_a_bad_root_file_before_touching_the_bus(
 
 def test_that_mockbus_serve_prints_a_device_that_servos_scan_can_open(
         capsys: pytest.CaptureFixture[str]) -> None:
+    def as_from_a_shell() -> None:
+        # earlier tests of this process (Ray, gRPC threads) may leave SIGINT blocked or ignored,
+        # which a child inherits; a server started from a shell has it delivered
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
     proc = subprocess.Popen([sys.executable, "-m", "robot_rise", "mockbus", "serve", "--duration", "60"],
-                            stdout=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, text=True, preexec_fn=as_from_a_shell)
     try:
         assert proc.stdout is not None
         ready, _, _ = select.select([proc.stdout], [], [], 60.0)
