@@ -130,15 +130,21 @@ class Robot:
         return tuple(servo_datasheet(s.model, extra_catalog=extra) for s in self.servos)
 
     @cached_property
-    def stand_height_m(self) -> float:
-        """Height of the torso site above the soles in the ``stand`` keyframe [m]."""
+    def _stand(self) -> tuple[mujoco.MjModel, mujoco.MjData, ModelIndex]:
+        """The robot alone (with its servos) in the ``stand`` keyframe, forward dynamics computed."""
         m = compose(self, None)
         d = mujoco.MjData(m)
         idx = model_index(m, self)
         d.qpos[:] = m.qpos0
         d.qpos[idx.qpos_root] = self.stand_qpos[:7]
         d.qpos[idx.qpos_joints] = self.stand_qpos[7:]
-        mujoco.mj_kinematics(m, d)
+        mujoco.mj_forward(m, d)
+        return m, d, idx
+
+    @cached_property
+    def stand_height_m(self) -> float:
+        """Height of the torso site above the soles in the ``stand`` keyframe [m]."""
+        d = self._stand[1]
         sole_z = min(d.site(s).xpos[2] for s in self.sole_sites)
         return float(d.site(self.torso_site).xpos[2] - sole_z)
 
@@ -146,13 +152,7 @@ class Robot:
     def joint_inertia_kg_m2(self) -> np.ndarray:
         """Each joint's inertia about its own axis in the ``stand`` keyframe, the servo's armature
         included [kg m^2], shape (n,): the diagonal of MuJoCo's joint-space inertia matrix."""
-        m = compose(self, None, with_actuators=True)
-        d = mujoco.MjData(m)
-        idx = model_index(m, self)
-        d.qpos[:] = m.qpos0
-        d.qpos[idx.qpos_root] = self.stand_qpos[:7]
-        d.qpos[idx.qpos_joints] = self.stand_qpos[7:]
-        mujoco.mj_forward(m, d)
+        m, d, idx = self._stand
         full = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, full)
         return full[idx.dof_joints, idx.dof_joints].copy()
