@@ -308,6 +308,8 @@ def rise(
             continue
         say(f"filtering {conn.motion} in MuJoCo")
         motion = library.get(conn.motion)
+        # a momentum motion stands only near its own timing: slowing it further is wasted replays
+        motion_config = dataclasses.replace(filter_config, motion_max_stretch=motion.max_stretch)
         commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=filter_config.blend_s)
         commanded = commanded.with_report(
             **planned.trajectory.report,
@@ -317,7 +319,7 @@ def rise(
             plan_duration_s=planned.trajectory.duration_s,
             plan_rows=len(planned.trajectory.t),
         )
-        result = dynamics_filter(robot, commanded, scene=scene, config=filter_config, start=start,
+        result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
                                  ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
         if not result.proven and planned.smoothed is not None and _approach_off_plan(result, len(planned.trajectory.t)):
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
@@ -326,7 +328,7 @@ def rise(
                                            planned.trajectory.report)
             slow = join_with_blend(cautious, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
                 **commanded.report, plan_duration_s=cautious.duration_s, plan_rows=len(cautious.t), approach_timing="cautious")
-            again = dynamics_filter(robot, slow, scene=scene, config=filter_config, start=start,
+            again = dynamics_filter(robot, slow, scene=scene, config=motion_config, start=start,
                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
             if again.proven:
                 result = again

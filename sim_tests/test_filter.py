@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_rise.filter import FilterConfig, dynamics_filter, join_with_blend, prove, time_scale
+from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, prove, time_scale
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -65,6 +65,18 @@ def test_a_too_fast_squat_is_slowed_by_the_filter_until_it_is_within_the_envelop
     # the output is the commanded targets, replayable: check agrees
     _, _, again = prove(robot, result.trajectory)
     assert again.proven
+
+
+def test_a_motion_timing_window_stops_the_slowing_at_its_bound(robot):
+    # a momentum motion stands only near its own timing (Motion.max_stretch): the filter does not
+    # replay ever slower versions of it, the next candidate is cheaper
+    fast = conform(_squat_trajectory(robot, 0.45), command_limits_for(robot))  # what the executor can stream
+    capped = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False, motion_max_stretch=1.05), join_row=0)
+    assert not capped.proven
+    assert capped.trajectory.duration_s <= 1.05 * fast.duration_s + 1e-9
+    assert capped.report["filter_iterations"] == 1
+    free = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False), join_row=0)
+    assert free.proven and free.trajectory.duration_s > 1.05 * fast.duration_s
 
 
 def test_an_impossible_motion_fails_with_a_reason(robot):

@@ -13,7 +13,8 @@ import robot_rise.library as library_mod
 from robot_rise.authoring import ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND
 from robot_rise.bench.library import random_lying_postures
 from robot_rise.errors import FormatError
-from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library, load_strategies
+from robot_rise.library import FrameIndex, KMeansTree, default_library_dir, load_library, load_strategies, read_strategy
+from robot_rise.paths import configs_dir
 from robot_rise.model import load_robot
 from robot_rise.posture import PostureDistance
 from robot_rise.sim.player import Player
@@ -335,3 +336,21 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
             assert LIBRARY.get(by_time[0].motion).lying == "prone" and turn[first] > MAX_ROOT_TURN_RAD
     with pytest.raises(ValueError, match="rank"):
         connection_candidates(LIBRARY, ROBOT, LIBRARY.motions[0].start, 1, index=index, rank="fastest")
+
+
+def test_a_momentum_motion_carries_its_timing_window_from_strategy_to_library(tmp_path: Path) -> None:
+    strategy = next(s for s in load_strategies() if s.name == "supine_situp_rock_robust")
+    assert strategy.max_stretch == pytest.approx(1.05)
+    assert LIBRARY.get("supine_situp_rock_robust").max_stretch == pytest.approx(1.05)
+    assert LIBRARY.get("supine_backroll_kneel").max_stretch is None
+    lib = tmp_path / "lib"
+    shutil.copytree(default_library_dir(), lib)
+    index = json.loads((lib / "index.json").read_text())
+    index["motions"][0]["max_stretch"] = 0.9
+    (lib / "index.json").write_text(json.dumps(index))
+    with pytest.raises(FormatError, match="max_stretch 0.9 must be a number >= 1"):
+        load_library(lib)
+    src = json.loads((configs_dir() / "strategies" / "supine_situp_rock_robust.json").read_text())
+    (tmp_path / "s.json").write_text(json.dumps({**src, "max_stretch": 0.5}))
+    with pytest.raises(FormatError, match="max_stretch 0.5 must be >= 1"):
+        read_strategy(tmp_path / "s.json")

@@ -207,6 +207,7 @@ def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -
                 lying_yaw_rad=s.lying_yaw_rad,
                 retime=s.retime,
                 clamp_lead=s.clamp_lead,
+                max_stretch=s.max_stretch,
             )
         )
     return tuple(out)
@@ -367,6 +368,7 @@ def author_library(
             "start": f"{spec.name}.start.json",
             "connect_until_s": connect_until_s,
             "duration_s": round(tr.duration_s, 3),
+            **({"max_stretch": spec.max_stretch} if spec.max_stretch is not None else {}),
         }
         entries.append(row)
         old_rows[spec.name] = row

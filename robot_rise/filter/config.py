@@ -43,6 +43,10 @@ class FilterConfig:
             approach before the join may be slowed as far as ``max_duration_s`` (a side posture
             kept on its side), and so may the ensemble's rounds (on a slope the variants need
             the slower stance).
+        motion_max_stretch: the library motion's own timing window
+            (``robot_rise.library.Motion.max_stretch``): neither the nominal filter nor the
+            ensemble's rounds slow the part from ``join_row`` on beyond this multiple of its
+            commanded duration (None: no window of its own). ``rise`` sets it per candidate.
         ensemble: prove on every model variant too (``robot_rise.sim.variants.ENSEMBLE``).
         ensemble_rounds: times a motion some variant falls with is slowed and proven again.
     """
@@ -62,5 +66,6 @@ class FilterConfig:
     hold_s: float = 3.0
     max_duration_s: float = 30.0
     max_stretch: float | None = None
+    motion_max_stretch: float | None = None
     ensemble: bool = True
     ensemble_rounds: int = 3

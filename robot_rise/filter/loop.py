@@ -164,7 +164,7 @@ def dynamics_filter(
         windows = [(max(v.t_start_s - config.window_pad_s, protect_until_s), min(v.t_end_s + config.window_pad_s, result.trajectory.duration_s)) for v in found]
         windows = [(a, b) for a, b in windows if b > a] or [(protect_until_s, result.trajectory.duration_s)]
         slowed = time_scale(result.trajectory, windows, config.slow_factor)
-        if slowed.duration_s > config.max_duration_s:
+        if slowed.duration_s > config.max_duration_s or _overstretched(slowed, commanded, join_row, config.motion_max_stretch):
             break
         log.info("ensemble round %d: %d variants fall; slowing %d windows", rounds, len(failures), len(windows))
         again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
@@ -262,7 +262,7 @@ def _nominal_filter(
         if not windows:
             break
         stretched = time_scale(current, windows, config.slow_factor)
-        if stretched.duration_s > config.max_duration_s or _overstretched(stretched, commanded, join_row, config.max_stretch):
+        if stretched.duration_s > config.max_duration_s or _overstretched(stretched, commanded, join_row, _stretch_cap(config)):
             break
         current = stretched
     assert last is not None
@@ -281,6 +281,12 @@ def _nominal_filter(
     }
     final = Trajectory(robot.name, current.joint_names, current.t, current.q, start, {**current.report, **full_report}, None)
     return FilterResult(ok, final, rec, verdict, proof, tuple(history), reason, full_report)
+
+
+def _stretch_cap(config: FilterConfig) -> float | None:
+    """The nominal filter's bound on slowing the library part: the tighter of the two."""
+    caps = [c for c in (config.max_stretch, config.motion_max_stretch) if c is not None]
+    return min(caps) if caps else None
 
 
 def _overstretched(stretched: Trajectory, commanded: Trajectory, join_row: int | None, max_stretch: float | None) -> bool:

@@ -49,6 +49,8 @@ class Motion:
         trajectory: the joint-target trajectory (with the simulated root pose per row).
         start: the settled lying posture it starts from.
         connect_until_s: end of the lying-to-sitting/squatting phase [s].
+        max_stretch: how far it may be slowed and still stand, a multiple of its duration (None:
+            no bound of its own; ``robot_rise.library.strategies.KeyframedMotion.max_stretch``).
     """
 
     name: str
@@ -57,6 +59,7 @@ class Motion:
     trajectory: Trajectory
     start: Posture
     connect_until_s: float
+    max_stretch: float | None = None
 
     @property
     def duration_s(self) -> float:
@@ -126,5 +129,9 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
         cut = float(row["connect_until_s"])
         if not 0.0 < cut <= tr.duration_s:
             raise FormatError(f"{where}: connect_until_s {cut} must lie in (0, {tr.duration_s}]")
-        motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut))
+        stretch = row.get("max_stretch")
+        if stretch is not None and not (isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch >= 1.0):
+            raise FormatError(f"{where}: max_stretch {stretch!r} must be a number >= 1 (a multiple of the motion's duration)")
+        motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut,
+                              None if stretch is None else float(stretch)))
     return MotionLibrary(str(obj.get("robot", robot_name)), root, tuple(motions))

@@ -69,6 +69,10 @@ class KeyframedMotion(Generic[K]):
         clamp_lead: pass the trajectory through
             :func:`robot_rise.authoring.goal_lead.clamp_goal_lead` (for a motion authored
             with saturating servos: its goals are pulled back to what the servos can follow).
+        max_stretch: how far the motion may be slowed and still stand, as a multiple of its
+            duration (None: no bound of its own). A momentum motion stands only near its own
+            timing (supine_situp_rock_robust: x0.95-x1.05 of its keyframe times); ``rise`` then
+            stops slowing it there and tries the next candidate instead of ever slower replays.
     """
 
     name: str
@@ -78,6 +82,7 @@ class KeyframedMotion(Generic[K]):
     lying_yaw_rad: float = 0.0
     retime: bool = True
     clamp_lead: bool = False
+    max_stretch: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -137,6 +142,11 @@ def read_strategy(path: str | os.PathLike[str]) -> Strategy:
         connect = int(obj["connect_keyframe"])
         if not 0 <= connect < len(kfs):
             raise FormatError(f"{p}: connect_keyframe {connect} is not a keyframe index (0..{len(kfs) - 1})")
+        max_stretch = obj.get("max_stretch")
+        if max_stretch is not None:
+            max_stretch = float(max_stretch)
+            if not max_stretch >= 1.0:
+                raise FormatError(f"{p}: max_stretch {max_stretch} must be >= 1 (a multiple of the motion's duration)")
         return Strategy(
             name=str(obj.get("name", p.stem)),
             lying=lying,
@@ -147,6 +157,7 @@ def read_strategy(path: str | os.PathLike[str]) -> Strategy:
             lying_yaw_rad=float(obj.get("lying_yaw_rad", 0.0)),
             retime=bool(obj.get("retime", True)),
             clamp_lead=bool(obj.get("clamp_lead", False)),
+            max_stretch=max_stretch,
         )
     except (KeyError, TypeError, ValueError) as e:
         raise FormatError(f"{p}: malformed strategy: missing or bad {e}") from e
