@@ -31,8 +31,10 @@ from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_schedulin
 from drivers.control_table import WATCHDOG_UNIT_S
 from drivers.errors import CommunicationError, SafetyError
 from drivers.group import GOAL_PWM, GOAL_PWM_SIZE, Feedback, ServoGroup
+from drivers.imu import Imu
 from drivers.safety import (
     ExpectedPositions,
+    ExpectedTilt,
     Fault,
     FaultKind,
     SafetyLimits,
@@ -41,9 +43,11 @@ from drivers.safety import (
     check_start,
     evaluate_expected,
     evaluate_feedback,
+    evaluate_tilt,
     limp_pwm_ramp,
     require_inside_limits,
     safe_target,
+    tilt_of_quaternion,
 )
 from drivers.startup import RecoveryReport, arm_watchdog, disarm_watchdog, recover
 
@@ -83,6 +87,12 @@ class ExecutorConfig:
             the trajectory's (cycle time times ``speed``, after any approach); each joint's
             distance from it at the first watched cycle (the start, within the start
             tolerance) is added to its tolerance. None: the absolute limit throughout.
+        imu: read in every cycle, right after the servos' feedback (the OpenCR shares their bus);
+            None: no IMU. A failed read is counted (``ExecutionReport.imu_lost_cycles``), never a
+            reason to stop a proven motion half way (stopping mid-rise drops the robot).
+        expected_tilt: the torso's expected tilt over trajectory time (times as ``expected``);
+            with ``imu``, a torso off it beyond the tolerance is a FALLING fault (the stop policy
+            applies). None: the tilt is not watched.
     """
 
     rate_hz: float = DEFAULT_RATE_HZ
@@ -96,6 +106,8 @@ class ExecutorConfig:
     realtime_priority: int | None = None
     cpu_latency_us: int | None = 0
     expected: ExpectedPositions | None = None
+    imu: Imu | None = None
+    expected_tilt: ExpectedTilt | None = None
 
     def __post_init__(self) -> None:
         # below MIN_RATE_HZ each step of the velocity limit becomes a jump the servo makes at
@@ -178,6 +190,9 @@ class ExecutionReport:
         max_expected_error_rad: largest |present - expected| seen [rad] (None: not watched).
         max_expected_ratio: largest |present - expected| / tolerance seen (None: not watched;
             above 1 only for fewer cycles in a row than the debounce, or at a fault).
+        max_tilt_error_rad: largest |torso tilt - expected tilt| the IMU showed [rad] (None: not
+            watched).
+        imu_lost_cycles: cycles whose IMU read failed (0 without an IMU).
         clamped_cycles: cycles in which the safety layer changed the target.
         stop_policy: the policy applied at the end.
         recovery: recovery outcome if one was attempted.
@@ -197,6 +212,8 @@ class ExecutionReport:
     timing: str = ""
     max_expected_error_rad: float | None = None
     max_expected_ratio: float | None = None
+    max_tilt_error_rad: float | None = None
+    imu_lost_cycles: int = 0
 
     @property
     def interrupted(self) -> bool:
@@ -306,6 +323,8 @@ class Executor:
         tolerance: FloatArray | None = None  # expected.tolerance_rad + each joint's offset at the start
         beyond = np.zeros(len(group.ids), dtype=np.int64)
         max_expected = max_ratio = 0.0
+        tilt_beyond = imu_lost = 0
+        max_tilt: float | None = None
         watchdog_s = self._armed_watchdog_s()
         pwm_limits = self._pwm_limits()
         dt = 1.0 / cfg.rate_hz
@@ -385,6 +404,17 @@ class Executor:
                     if fb.valid.any():
                         max_expected = max(max_expected, float(np.max(err[fb.valid])))
                         max_ratio = max(max_ratio, float(np.max((err / tolerance)[fb.valid])))
+                if cfg.imu is not None:
+                    sample = cfg.imu.read()
+                    if not sample.valid:
+                        imu_lost += 1
+                    elif cfg.expected_tilt is not None and tau >= -1e-9:
+                        tilt, should = tilt_of_quaternion(sample.quat_wxyz), cfg.expected_tilt.at(tau)
+                        tilt_beyond, falling = evaluate_tilt(tilt, should, cfg.expected_tilt.tolerance_rad, tilt_beyond,
+                                                             cfg.expected_tilt.debounce_cycles(dt))
+                        found = [*found, *falling]
+                        if math.isfinite(tilt):
+                            max_tilt = max(max_tilt or 0.0, abs(tilt - should))
                 if fb.valid.all():
                     max_track = max(max_track, float(np.max(np.abs(fb.position_rad - q_tracked))))
                 elif fb.valid.any():
@@ -426,7 +456,8 @@ class Executor:
                                cfg.stop_policy, recovery, cfg.log_path,
                                np.array(commands) if commands else None,
                                max_expected_error_rad=max_expected if watched_any else None,
-                               max_expected_ratio=max_ratio if watched_any else None)
+                               max_expected_ratio=max_ratio if watched_any else None,
+                               max_tilt_error_rad=max_tilt, imu_lost_cycles=imu_lost)
 
     def _armed_watchdog_s(self) -> float | None:
         """The Bus Watchdog timeout the servos have armed [s] (the shortest), None if none is.

@@ -35,6 +35,10 @@ __all__ = [
     "EXPECTED_DEBOUNCE_S",
     "ExpectedPositions",
     "evaluate_expected",
+    "TILT_DEBOUNCE_S",
+    "ExpectedTilt",
+    "evaluate_tilt",
+    "tilt_of_quaternion",
     "StopPolicy",
     "FaultKind",
     "Fault",
@@ -63,6 +67,9 @@ FloatArray = NDArray[np.float64]
 MAX_VELOCITY_RAD_S = 4.8  # [rad/s]
 MAX_TRACKING_ERROR_RAD = 0.35  # [rad] |present - last command| that aborts when no prediction is watched
 EXPECTED_DEBOUNCE_S = 0.03  # [s] a deviation from the expected positions must last this long (3 cycles at 100 Hz)
+# [s] the torso must stay off its expected tilt this long to be falling: longer than the joints'
+# debounce, since the IMU's fused orientation lags and rings after an impact (a hand landing)
+TILT_DEBOUNCE_S = 0.1
 
 
 class StopPolicy(enum.Enum):
@@ -81,6 +88,7 @@ class FaultKind(enum.Enum):
     INTERRUPTED = "interrupted"
     DEADLINE = "deadline"
     HOST = "host error"
+    FALLING = "falling"
 
 
 @dataclass(frozen=True)
@@ -220,6 +228,84 @@ def evaluate_expected(q_present_rad: FloatArray, q_expected_rad: FloatArray, tol
                     f"(tolerance {tolerance_rad[i]:.3f} rad)")
               for i in np.flatnonzero(count >= debounce_cycles)]
     return count, faults
+
+
+@dataclass(frozen=True)
+class ExpectedTilt:
+    """How far the torso should lean from the vertical while a trajectory runs (a proof's replay).
+
+    The IMU read in each cycle gives the torso's tilt; farther than ``tolerance_rad`` from the
+    expected one for ``debounce_s`` is a FALLING fault (:func:`evaluate_tilt`): the body is not
+    moving as proven, and streaming on would only fight the fall.
+
+    Attributes:
+        t_s: trajectory time [s], shape (K,), strictly increasing (0 = the trajectory's first row).
+        tilt_rad: expected angle between the torso's z axis and the world vertical [rad], shape (K,).
+        tolerance_rad: largest accepted |present - expected| [rad].
+        debounce_s: how long the tilt may stay beyond the tolerance before it is a fault [s].
+    """
+
+    t_s: FloatArray
+    tilt_rad: FloatArray
+    tolerance_rad: float
+    debounce_s: float = TILT_DEBOUNCE_S
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t_s, dtype=float)
+        tilt = np.array(self.tilt_rad, dtype=float)
+        if t.ndim != 1 or t.size < 1 or tilt.shape != t.shape:
+            raise SafetyError(f"expected tilt: shapes t{t.shape} tilt{tilt.shape} disagree")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(tilt))) or np.any(np.diff(t) <= 0):
+            raise SafetyError("expected tilt: times must increase strictly and every value be finite")
+        if not (self.tolerance_rad > 0 and math.isfinite(self.tolerance_rad)) or not (self.debounce_s >= 0 and math.isfinite(self.debounce_s)):
+            raise SafetyError("expected tilt: the tolerance must be positive and the debounce >= 0")
+        for a in (t, tilt):
+            a.setflags(write=False)
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "tilt_rad", tilt)
+
+    def at(self, tau_s: float) -> float:
+        """The expected tilt at trajectory time ``tau_s`` [s] (held at the ends) [rad]."""
+        return float(np.interp(tau_s, self.t_s, self.tilt_rad))
+
+    def debounce_cycles(self, dt_s: float) -> int:
+        """Consecutive cycles of ``dt_s`` [s] beyond the tolerance that make a fault (at least 1)."""
+        return max(1, int(math.ceil(self.debounce_s / dt_s - 1e-9)))
+
+
+def tilt_of_quaternion(quat_wxyz: Sequence[float]) -> float:
+    """Angle between a frame's z axis and the world vertical [rad], from its orientation (w, x, y, z)."""
+    w, x, y, z = (float(v) for v in quat_wxyz)
+    norm = w * w + x * x + y * y + z * z
+    if not (norm > 0 and math.isfinite(norm)):
+        return math.nan
+    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / norm)))  # R[2, 2]
+
+
+def evaluate_tilt(tilt_rad: float, expected_rad: float, tolerance_rad: float, beyond_cycles: int,
+                  debounce_cycles: int) -> tuple[int, list[Fault]]:
+    """Judge one cycle's torso tilt against the expected one. Pure.
+
+    Args:
+        tilt_rad: present tilt [rad] (NaN: not read this cycle: the count is kept).
+        expected_rad: expected tilt [rad].
+        tolerance_rad: the accepted distance [rad].
+        beyond_cycles: consecutive cycles beyond the tolerance so far.
+        debounce_cycles: that many in a row make a FALLING fault.
+
+    Returns:
+        (the updated count, the faults).
+    """
+    if not math.isfinite(tilt_rad):
+        return beyond_cycles, []
+    err = abs(tilt_rad - expected_rad)
+    count = beyond_cycles + 1 if err > tolerance_rad else 0
+    if count < debounce_cycles:
+        return count, []
+    return count, [Fault(FaultKind.FALLING, -1, err, tolerance_rad,
+                         f"torso tilted {math.degrees(tilt_rad):.0f} deg where the proof expects "
+                         f"{math.degrees(expected_rad):.0f} +- {math.degrees(tolerance_rad):.0f} deg, "
+                         f"for {count} cycles: the body is not moving as proven")]
 
 
 def clamp_to_limits(q_rad: FloatArray, lower_rad: FloatArray, upper_rad: FloatArray) -> FloatArray:

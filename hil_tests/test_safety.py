@@ -7,6 +7,9 @@ import pytest
 
 from drivers.errors import SafetyError
 from drivers.safety import (
+    ExpectedTilt,
+    evaluate_tilt,
+    tilt_of_quaternion,
     FaultKind,
     SafetyLimits,
     approach_path,
@@ -206,3 +209,36 @@ def test_that_malformed_expected_positions_are_refused() -> None:
                 dict(tolerance_rad=np.full(2, 0.1)), dict(q_rad=np.full((2, 3), np.nan))):
         with pytest.raises(SafetyError, match="expected positions"):
             ExpectedPositions(**{"t_s": t, "q_rad": q, "tolerance_rad": np.full(3, 0.1), **bad})
+
+
+def test_that_the_tilt_of_an_orientation_is_its_z_axis_from_the_vertical() -> None:
+    assert tilt_of_quaternion((1.0, 0.0, 0.0, 0.0)) == pytest.approx(0.0)
+    half = np.radians(30.0) / 2
+    assert tilt_of_quaternion((np.cos(half), np.sin(half), 0.0, 0.0)) == pytest.approx(np.radians(30.0))  # roll
+    assert tilt_of_quaternion((np.cos(half), 0.0, 0.0, np.sin(half))) == pytest.approx(0.0)  # yaw is no tilt
+    assert tilt_of_quaternion((0.0, 0.0, 1.0, 0.0)) == pytest.approx(np.pi)  # upside down
+    assert np.isnan(tilt_of_quaternion((np.nan, 0.0, 0.0, 0.0)))
+
+
+def test_that_a_torso_off_its_expected_tilt_is_falling_only_after_the_debounce() -> None:
+    expected = ExpectedTilt(np.array([0.0, 1.0]), np.array([1.5, 0.1]), 0.2, debounce_s=0.03)
+    assert expected.at(0.5) == pytest.approx(0.8) and expected.debounce_cycles(0.01) == 3
+    count, faults = evaluate_tilt(0.85, expected.at(0.5), 0.2, 0, 3)
+    assert (count, faults) == (0, [])
+    for k in (1, 2):
+        count, faults = evaluate_tilt(1.6, 0.8, 0.2, count, 3)
+        assert count == k and not faults
+    count, faults = evaluate_tilt(np.nan, 0.8, 0.2, count, 3)  # not read: the count is kept
+    assert count == 2 and not faults
+    count, faults = evaluate_tilt(1.6, 0.8, 0.2, count, 3)
+    assert count == 3 and [f.kind for f in faults] == [FaultKind.FALLING]
+    assert "torso tilted 92 deg where the proof expects 46 +- 11 deg" in faults[0].message
+
+
+def test_that_a_malformed_expected_tilt_is_refused() -> None:
+    with pytest.raises(SafetyError, match="shapes"):
+        ExpectedTilt(np.array([0.0, 1.0]), np.array([0.1]), 0.2)
+    with pytest.raises(SafetyError, match="increase strictly"):
+        ExpectedTilt(np.array([1.0, 0.0]), np.array([0.1, 0.2]), 0.2)
+    with pytest.raises(SafetyError, match="tolerance must be positive"):
+        ExpectedTilt(np.array([0.0, 1.0]), np.array([0.1, 0.2]), 0.0)

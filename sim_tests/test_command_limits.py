@@ -25,6 +25,7 @@ from robot_rise.filter.command_limits import (
 )
 from robot_rise.filter.prediction import (
     PREDICTION_RATE_HZ,
+    TILT_TOLERANCE_FLOOR_RAD,
     TOLERANCE_FLOOR_RAD,
     PredictedPositions,
     expected_positions_of,
@@ -200,6 +201,18 @@ def test_that_the_ensembles_spread_widens_the_tolerance_of_the_joints_it_moves(r
     wide = PredictedPositions.from_dict(predicted_positions(replay, ensemble=[variant])).tolerance_rad
     assert wide[k] == pytest.approx(plain[k] + 0.1, abs=2e-4)
     np.testing.assert_allclose(np.delete(wide, k), np.delete(plain, k))
+
+
+def test_that_the_table_predicts_the_torso_tilt_with_the_variants_spread(replay) -> None:
+    pred = PredictedPositions.from_dict(predicted_positions(replay))
+    assert pred.tilt_rad is not None and pred.tilt_rad.shape == pred.t_s.shape
+    np.testing.assert_allclose(np.interp(replay.t, pred.t_s, pred.tilt_rad), replay.tilt_rad, atol=pred.tilt_tolerance_rad)
+    assert TILT_TOLERANCE_FLOOR_RAD <= pred.tilt_tolerance_rad < TILT_TOLERANCE_FLOOR_RAD + 0.01
+    leaning = dataclasses.replace(replay, tilt_rad=np.asarray(replay.tilt_rad) + 0.3)  # a variant 0.3 rad more bent
+    wide = PredictedPositions.from_dict(predicted_positions(replay, ensemble=[leaning]))
+    assert wide.tilt_tolerance_rad == pytest.approx(pred.tilt_tolerance_rad + 0.3, abs=2e-4)
+    old = {k: v for k, v in predicted_positions(replay).items() if not k.startswith("tilt")}
+    assert PredictedPositions.from_dict(old).tilt_rad is None  # a file from before tilts: nothing to watch
 
 
 def test_that_expected_positions_are_read_from_the_report_or_absent(replay) -> None:

@@ -74,10 +74,22 @@ def test_that_an_overload_and_a_silent_imu_mid_rise_stop_safely_within_limits_an
     assert overload["halted"] and overload["stop_after_s"] < 0.05 and overload["retries"] == 0
     assert overload["end"] == "limp" and not overload["standing"]
     assert f"{_joint(overload)}: hardware error (overload)" in overload["reason"]
-    # blind: the proven get-up runs out (the IMU is not watched while it streams), then the servos hold
+    # blind: the proven get-up runs out (a lost IMU never stops a proven motion half way: that would
+    # drop the robot), then the servos hold and no new try is made without it
     assert not imu["halted"] and imu["end"] == "holding" and imu["retries"] == 0
     assert "the IMU stopped answering" in imu["reason"] and "holding" in imu["reason"]
     assert set(report["summary"]) == {"overload", "imu-silent"}
+
+
+def test_that_a_shove_mid_rise_is_seen_by_the_imu_the_servos_go_limp_and_it_rises_again() -> None:
+    # the IMU is read in every cycle of the get-up: a torso off the proof's tilt is a fall
+    code, report = _bench("push", seed=1)
+    assert code == 0
+    trial = report["trials"][0]
+    _assert_stopped_safely_in_limits(trial)
+    assert trial["halted"] and trial["stop_after_s"] < 0.5
+    assert "falling at the IMU (id 200): torso tilted" in trial["reason"]
+    assert trial["retries"] >= 1 and trial["standing"] and trial["upright"]
 
 
 @pytest.mark.slow

@@ -38,6 +38,7 @@ from robot_rise.trajectory import Trajectory
 
 __all__ = [
     "FAULT_WINDOW",
+    "PUSH_WINDOW",
     "MOTION_TICKS",
     "LYING_ORDER",
     "LiveFault",
@@ -53,6 +54,10 @@ __all__ = [
 ]
 
 FAULT_WINDOW = (0.2, 0.7)  # the fault strikes at this share of the get-up's duration (uniform, seeded): mid-rise
+# a shove strikes once the body is up off the floor (a shove of a lying body leaves it lying) [share of the duration]
+PUSH_WINDOW = (0.7, 0.9)
+PUSH_FORCE_N = 60.0  # [N] horizontal, at the torso, for PUSH_S: ours, 12 N s topples the 3.5 kg OP3 twin from any pose
+PUSH_S = 0.2
 # [ticks] a goal write commands motion when it moves the servo's goal by more than this and lies more than this
 # from where the shaft is (a hold writes goal = present; a normal end writes the last goal again)
 MOTION_TICKS = 2
@@ -67,11 +72,12 @@ class LiveFault(enum.Enum):
     OVERLOAD = "overload"  # a servo raises its Overload hardware error: its firmware shuts its torque off
     BLOCKED = "blocked"  # a joint's shaft is blocked (a jammed gear, an obstacle): it answers, it does not move
     IMU_SILENT = "imu-silent"  # the OpenCR (the IMU, ID 200) stops answering
+    PUSH = "push"  # a shove at the torso (a person, a collision): the body leaves the proven motion
 
     @property
     def on_servo(self) -> bool:
-        """The fault strikes one servo (the others: the IMU)."""
-        return self is not LiveFault.IMU_SILENT
+        """The fault strikes one servo (the others: the IMU, the body)."""
+        return self not in (LiveFault.IMU_SILENT, LiveFault.PUSH)
 
 
 @dataclass(frozen=True)
@@ -86,6 +92,7 @@ class FaultRig:
         servo_map: the servos; every goal is checked against their limits.
         truth: where the body truly lies (the twin), for the estimate's error.
         upright: whether the twin's torso is upright now (the truth, not the IMU).
+        push: shoves the twin's torso: a horizontal force [N] (world x, y) for a duration [s].
     """
 
     io: RobotIO
@@ -95,6 +102,7 @@ class FaultRig:
     servo_map: ServoMap
     truth: TruthSource | None = None
     upright: Callable[[], bool] | None = None
+    push: Callable[[tuple[float, float], float], None] | None = None
 
 
 OpenRig = Callable[[Posture, int], AbstractContextManager[FaultRig]]
@@ -357,7 +365,8 @@ def run_fault_trial(open_rig: OpenRig, robot: Robot, kind: LiveFault, *, trial: 
     trial_seed = seed + trial
     lying = LYING_ORDER[trial_seed % len(LYING_ORDER)]
     rng = random.Random(f"{kind.value}/{trial_seed}")
-    share = rng.uniform(*FAULT_WINDOW)
+    share = rng.uniform(*(PUSH_WINDOW if kind is LiveFault.PUSH else FAULT_WINDOW))
+    heading = rng.uniform(-math.pi, math.pi) if kind is LiveFault.PUSH else 0.0  # drawn for a push only: other kinds keep their draws
     start = sample_lying_postures(robot, lying, 1, seed=trial_seed)[0]  # type: ignore[arg-type]
     w0 = time.perf_counter()
     with open_rig(start, trial_seed) as rig, GoalSpy(rig.bus, rig.servo_map) as spy:
@@ -371,6 +380,10 @@ def run_fault_trial(open_rig: OpenRig, robot: Robot, kind: LiveFault, *, trial: 
             if kind.on_servo:
                 spec = by_joint.get(_moving_joint(trajectory, at_s, rng)) or rig.servo_map.servos[0]
                 target_id, label = spec.id, spec.label
+            elif kind is LiveFault.PUSH:
+                if rig.push is None:
+                    raise ValueError("the rig cannot push its twin")
+                target_id, label = -1, f"torso ({PUSH_FORCE_N:.0f} N at {math.degrees(heading):.0f} deg)"
             else:
                 if bus.imu is None:
                     raise ValueError("the rig's bus has no IMU to silence")
@@ -379,7 +392,10 @@ def run_fault_trial(open_rig: OpenRig, robot: Robot, kind: LiveFault, *, trial: 
 
             def strike(b: MockBus) -> None:
                 struck.append(start_s + at_s)
-                _inject(kind, b, target_id)
+                if kind is LiveFault.PUSH and rig.push is not None:
+                    rig.push((PUSH_FORCE_N * math.cos(heading), PUSH_FORCE_N * math.sin(heading)), PUSH_S)
+                else:
+                    _inject(kind, b, target_id)
 
             bus.faults.at(start_s + at_s, strike)
 
@@ -416,12 +432,16 @@ def run_fault_trial(open_rig: OpenRig, robot: Robot, kind: LiveFault, *, trial: 
         joint = names.get(tid) if tid is not None else None
         names_fault = tid is not None and ((joint is not None and joint in reason) or f"id {tid}" in reason)
         safe_end = end == "limp" or bool(upright)
+    elif kind is LiveFault.PUSH:
+        # the torso off its proven tilt (the IMU), or a joint off its predicted position first
+        names_fault = "falling" in reason or "tracking error" in reason
+        safe_end = end == "limp" or bool(upright)
     else:
         names_fault = "IMU" in reason
         safe_end = True  # blind: limp, or holding as the loop leaves it (it may stand)
     # the get-up stopped; or it ran to its end and the servos hold: blind (the IMU lost), or a
     # robot standing whose fault never showed (a blocked joint within the proof's tolerance)
-    stopped = halted or (mid_rise and (not kind.on_servo or (report.standing and bool(upright))))
+    stopped = halted or (mid_rise and ((kind is LiveFault.IMU_SILENT) or (report.standing and bool(upright))))
     detail = tuple(f"servo {w.servo_id} at {w.t_s:.2f} s: {w.ticks} ticks outside "
                    f"{limits[w.servo_id][0]}..{limits[w.servo_id][1]}" for w in out[:5])
     return FaultTrial(

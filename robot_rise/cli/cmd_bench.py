@@ -25,7 +25,9 @@ The twin lies down (supine, prone, left, right in turn) and getup runs on the em
 random 20-70 % of the first get-up it executes, one fault strikes a servo among those moving
 fastest then, or the IMU: servo-silent (the servo stops answering), overload (it raises its
 Overload error: its firmware cuts its torque), blocked (its shaft stops moving), imu-silent (the
-OpenCR at ID 200 stops answering). Every goal on the bus is checked against the servo map's limits.
+OpenCR at ID 200 stops answering), push (a 60 N shove at the torso for 0.2 s, at 70-90 % of the
+get-up, once the body is off the floor: the IMU, read in every cycle, sees the torso leave the
+proof's tilt). Every goal on the bus is checked against the servo map's limits.
 """
 
 
@@ -93,7 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--trials", type=int, default=3, help="trials per fault kind (default: 3)")
     f.add_argument("--seed", type=int, default=0, help="first seed: start posture, IMU noise, fault time (default: 0)")
     f.add_argument("--kind", action="append", choices=[k.value for k in LiveFault],
-                   help="fault kind(s) (default: all four)")
+                   help="fault kind(s) (default: all)")
     f.add_argument("--budget", type=float, default=5.0, help="planning budget per candidate motion [s] (default: 5)")
     f.add_argument("--json", action="store_true", help="print every trial and the summary as JSON")
     add_robot_args(f, scene=False)
@@ -256,7 +258,8 @@ def _fault_rig_opener(args: argparse.Namespace) -> OpenRig:
                 if bus is None or twin is None:
                     raise RobotRiseError("the live session has no emulated bus with a twin")
                 yield FaultRig(s.io, s.planner, s.estimator, bus, s.io.map, s.truth,
-                               upright=lambda: bool(twin.state().upright))
+                               upright=lambda: bool(twin.state().upright),
+                               push=lambda force, seconds: twin.push((force[0], force[1], 0.0), seconds))
         finally:
             if name is not None:
                 mb.detach(name)  # the bus holds the twin: let both go

@@ -162,7 +162,7 @@ class BusRobotIO:
     def execute(self, trajectory: Trajectory) -> ExecutionResult:
         from drivers.errors import DriverError
         from drivers.executor import Executor, ExecutorConfig
-        from drivers.safety import StopPolicy
+        from drivers.safety import FaultKind, StopPolicy
         from drivers.startup import engage
         from robot_rise.filter import execution_permit
         from robot_rise.live.getup import ExecutionResult
@@ -170,16 +170,17 @@ class BusRobotIO:
         limits = self.limits
         try:
             if self.allow_unproven and not execution_permit(trajectory.report, self.robot).allowed:
-                expected, limits = None, self.unproven_limits
+                expected, tilt, limits = None, None, self.unproven_limits
             else:
-                expected = self._permit(trajectory)
+                expected, tilt = self._permit(trajectory)
             engage(self.group, watchdog_s=WATCHDOG_S)
         except (DriverError, RobotRiseError) as e:
             return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
         # no automatic reboot of a servo that shut down on a hardware error: rebooting clears the
         # error, and the health check before the next try is what must see it (and refuse)
+        # the IMU is read in every cycle: a torso off the proof's tilt is a fall, not a get-up
         config = ExecutorConfig(stop_policy=StopPolicy.HOLD, expected=expected, recovery_attempts=0,
-                                cpu_latency_us=None if self.simulated else 0)
+                                cpu_latency_us=None if self.simulated else 0, imu=self.imu, expected_tilt=tilt)
         first = self.now_s()
         try:
             rep = Executor(self.group, limits, config).run(trajectory.joint_names, trajectory.t, trajectory.q)
@@ -188,14 +189,21 @@ class BusRobotIO:
             return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
         self._disarm()
         self.executions.append(rep)
-        reason = "; ".join(f"{f.kind.value} at {self._fault_site(f.index)}: "
+        if any(f.kind is FaultKind.FALLING for f in rep.faults):
+            self.go_limp()  # falling: servos that hold would fight the impact
+        reason = "; ".join(f"{f.kind.value} at {self._fault_site(f)}: "
                            f"{f.message.removeprefix(f'joint {f.index}: ')}" for f in rep.faults)
         return ExecutionResult(rep.completed, first, self.now_s(), reason, rep.interrupted)
 
-    def _fault_site(self, index: int) -> str:
-        """Which servo an executor fault is about (its index is in map order; -1: the bus)."""
+    def _fault_site(self, fault: Any) -> str:
+        """Which servo an executor fault is about (its index is in map order; -1: the bus, or
+        the IMU for a fall)."""
+        from drivers.safety import FaultKind
+
         servos = self.map.servos
-        return servos[index].label if 0 <= index < len(servos) else "the bus"
+        if fault.kind is FaultKind.FALLING:
+            return f"the IMU (id {self.imu.device_id})"
+        return servos[fault.index].label if 0 <= fault.index < len(servos) else "the bus"
 
     def _disarm(self) -> None:
         from drivers.errors import CommunicationError
@@ -208,8 +216,9 @@ class BusRobotIO:
 
     def _permit(self, trajectory: Trajectory):
         """Executed = proven (as robot-rise execute): the proof is this robot's, under these
-        command limits; returns the proof's predicted positions as the executor's expected ones."""
-        from drivers.safety import ExpectedPositions
+        command limits; returns the proof's predicted positions and torso tilt as the executor's
+        expected ones (None where the proof has none)."""
+        from drivers.safety import ExpectedPositions, ExpectedTilt
         from robot_rise.filter import execution_permit
         from robot_rise.filter.command_limits import CommandLimits, command_limits_of, match_command_limits
         from robot_rise.filter.prediction import expected_positions_of
@@ -227,9 +236,10 @@ class BusRobotIO:
                 raise RobotRiseError(match.reason, hint=match.hint)
         predicted = expected_positions_of(trajectory.report)
         if predicted is None:
-            return None
+            return None, None
         idx = self.map.index_of(predicted.joint_names)
-        return ExpectedPositions(predicted.t_s, predicted.q_rad[:, idx], predicted.tolerance_rad[idx])
+        tilt = None if predicted.tilt_rad is None else ExpectedTilt(predicted.t_s, predicted.tilt_rad, predicted.tilt_tolerance_rad)
+        return ExpectedPositions(predicted.t_s, predicted.q_rad[:, idx], predicted.tolerance_rad[idx]), tilt
 
     def go_limp(self) -> None:
         from drivers.errors import CommunicationError
