@@ -110,3 +110,5 @@ def test_that_a_blocked_joint_mid_rise_stops_each_try_and_is_named() -> None:
     _assert_stopped_safely_in_limits(trial)
     assert trial["halted"] and trial["end"] == "limp" and not trial["standing"]
     assert f"tracking error at {trial['target']}" in trial["reason"]
+    # the same joint stopped the second try too: no third one into a blocked joint
+    assert trial["retries"] == 1 and "stopped two get-ups in a row (blocked?)" in trial["reason"]

@@ -193,7 +193,10 @@ class BusRobotIO:
             self.go_limp()  # falling: servos that hold would fight the impact
         reason = "; ".join(f"{f.kind.value} at {self._fault_site(f)}: "
                            f"{f.message.removeprefix(f'joint {f.index}: ')}" for f in rep.faults)
-        return ExecutionResult(rep.completed, first, self.now_s(), reason, rep.interrupted)
+        servos = self.map.servos
+        lagging = tuple(dict.fromkeys(servos[f.index].joint for f in rep.faults
+                                      if f.kind is FaultKind.TRACKING and 0 <= f.index < len(servos)))
+        return ExecutionResult(rep.completed, first, self.now_s(), reason, rep.interrupted, lagging)
 
     def _fault_site(self, fault: Any) -> str:
         """Which servo an executor fault is about (its index is in map order; -1: the bus, or

@@ -156,6 +156,8 @@ class ExecutionResult:
         ended_s: IO clock time at the end [s].
         reason: why it stopped or was refused (empty when completed).
         interrupted: the operator stopped it (Ctrl-C).
+        lagging_joints: joints whose servo it stopped for, off the proof's predicted position (a
+            blocked shaft, or the body went elsewhere).
     """
 
     completed: bool
@@ -163,6 +165,7 @@ class ExecutionResult:
     ended_s: float
     reason: str = ""
     interrupted: bool = False
+    lagging_joints: tuple[str, ...] = ()
 
 
 @runtime_checkable
@@ -599,6 +602,7 @@ def get_up(io: RobotIO, planner: GetUpPlanner, estimator: PostureEstimator, *,
     """
     tracker = tracker if tracker is not None else new_tracker(config.fall)
     attempts: list[AttemptReport] = []
+    lagged: tuple[str, ...] = ()  # the joints the previous get-up stopped for
 
     def give_up(reason: str, *, interrupted: bool = False, limp: bool = True) -> GetUpReport:
         if limp and not interrupted:
@@ -674,6 +678,11 @@ def get_up(io: RobotIO, planner: GetUpPlanner, estimator: PostureEstimator, *,
                 return GetUpReport(True, tuple(attempts), tracker=tracker)
             if seen.imu_lost:  # blind: it may be standing; the servos keep holding, no new try
                 return give_up(f"{why}: servos left holding, no new try without the IMU", limp=False)
+            again = [j for j in run.lagging_joints if j in lagged]
+            if again:  # the same joint stopped two tries in a row: blocked, not bad luck
+                return give_up(f"{', '.join(again)} stopped two get-ups in a row (blocked?): "
+                               f"no new try, to protect the hardware; {why}")
+            lagged = run.lagging_joints
             if config.limp_when_falling:
                 io.go_limp()
             tracker = _read_for(io, tracker, config, config.fall.still_s)
