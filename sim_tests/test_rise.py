@@ -137,3 +137,14 @@ def test_rise_names_a_missing_or_broken_scene_file(robot, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("error: cannot read scene ") and "shipped scenes: flat, beam" in err and "Traceback" not in err
     assert not (tmp_path / "o.json").exists()
+
+
+def test_bench_rise_prints_where_the_robot_time_goes(capsys):
+    assert main(["bench", "rise", "--n-per-kind", "1", "--seed", "1", "--no-robustness", "--jobs", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "| robot time, medians: approach / library / blend and slowing [s] |" in out
+    row = next(line for line in out.splitlines() if line.startswith("| all |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    approach, library, blend = (float(x) for x in cells[6].split(" / "))
+    median, p90 = (float(x) for x in cells[4].split(" / "))
+    assert 0 < approach < median and 0 < library <= median and blend >= 0 and p90 >= median

@@ -135,11 +135,15 @@ def run_rise(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"summary": summary, "cases": [c.__dict__ for c in cases]})
         return 0
-    print("| kind | n | success | wall median / p95 [s] | get-up duration median [s] | peak torque ratio (max) |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print("| kind | n | success | wall median / p95 [s] | get-up duration median / p90 [s] | standing from, median [s] "
+          "| robot time, medians: approach / library / blend and slowing [s] | peak torque ratio (max) |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for kind, row in summary.items():
+        split = " / ".join(f"{row[f'{part}_median_s']:.2f}" if f"{part}_median_s" in row else "-"
+                           for part in ("approach", "library", "blend_and_slowing"))
         print(f"| {kind} | {row['n']} | {100 * row['success']:.0f}% | {row['wall_median_s']:.1f} / {row['wall_p95_s']:.1f} | "
-              f"{row['duration_median_s']:.2f} | {row['peak_torque_ratio_max']:.2f} |")
+              f"{row['duration_median_s']:.2f} / {row['duration_p90_s']:.2f} | {row['stood_from_median_s']:.2f} | {split} | "
+              f"{row['peak_torque_ratio_max']:.2f} |")
     for kind, row in summary.items():
         if "ensemble_median_s" in row:
             print(f"{kind}: median seconds: plan {row['plan_median_s']:.2f}, filter (nominal) {row['filter_nominal_median_s']:.2f}, "
