@@ -57,6 +57,11 @@ def _verdict(variant: ModelVariant, rec: Recording, config: FilterConfig) -> Var
     v = judge(rec)
     # grown shapes overlap by twice the growth where the nominal ones touch: that much is the same touch
     tolerance = config.self_penetration_tolerance_m + 2.0 * max(0.0, variant.geom_grow_m)
+    # and a limb that rests on the body where the robot lies (a foot against the torso) starts as
+    # deep as the grown shapes and its load put it: the start's own overlap is where the robot is,
+    # not what the motion does; only deeper than that (by the tolerance) counts
+    if rec.self_penetration_m.size:
+        tolerance = max(tolerance, float(rec.self_penetration_m[0]) + config.self_penetration_tolerance_m)
     self_collision = bool(np.max(rec.self_penetration_m, initial=0.0) > tolerance)
     standing = bool(v.standing and not self_collision)
     reason = "" if standing else (v.reason or "self-collision")
