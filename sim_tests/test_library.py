@@ -354,3 +354,13 @@ def test_a_momentum_motion_carries_its_timing_window_from_strategy_to_library(tm
     (tmp_path / "s.json").write_text(json.dumps({**src, "max_stretch": 0.5}))
     with pytest.raises(FormatError, match="max_stretch 0.5 must be >= 1"):
         read_strategy(tmp_path / "s.json")
+
+
+def test_a_partial_build_counts_the_motions_it_kept_when_it_names_the_kinds_without_one() -> None:
+    from robot_rise.authoring.build import BuildReport
+
+    prone = {"name": "prone_a", "lying": "prone", "duration_s": 3.0}
+    report = BuildReport("r", Path("."), written=(), failed={"supine_b": "does not stand"}, lying={"supine_b": "supine"},
+                         kept=(prone,))
+    assert report.kinds_without_motion() == ("supine", "left", "right")
+    assert report.to_dict()["kept"] == [prone] and report.to_dict()["kinds_without_motion"] == ["supine", "left", "right"]

@@ -29,16 +29,19 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BuildReport:
-    """What ``build_library`` did: index rows written, and the reason per strategy not written."""
+    """What ``build_library`` did: index rows written, the reason per strategy not written, and
+    the rows of the library's earlier motions a partial build (``names``) left in place."""
 
     robot: str
     directory: Path
     written: tuple[dict, ...]
     failed: dict[str, str] = field(default_factory=dict)
     lying: dict[str, str] = field(default_factory=dict)  # strategy name -> lying kind
+    kept: tuple[dict, ...] = ()
 
     def kinds_without_motion(self) -> tuple[str, ...]:
-        have = {r["lying"] for r in self.written}
+        """Lying kinds the library (written and kept motions) has no motion for."""
+        have = {r["lying"] for r in (*self.written, *self.kept)}
         return tuple(k for k in LYING_KINDS if k not in have)
 
     def to_dict(self) -> dict:
@@ -46,6 +49,7 @@ class BuildReport:
             "format": BUILD_REPORT_FORMAT,
             "robot": self.robot,
             "written": list(self.written),
+            "kept": list(self.kept),
             "failed": [{"name": n, "lying": self.lying.get(n, ""), "reason": r} for n, r in self.failed.items()],
             "kinds_without_motion": list(self.kinds_without_motion()),
         }
@@ -107,6 +111,7 @@ def build_library(
     written = tuple(rows[s.name] for s in chosen if s.name in rows)
     index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [*old, *written]}
     write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
-    report = BuildReport(robot.name, out, written, {s.name: failed[s.name] for s in chosen if s.name in failed}, {s.name: s.lying for s in chosen})
+    report = BuildReport(robot.name, out, written, {s.name: failed[s.name] for s in chosen if s.name in failed}, {s.name: s.lying for s in chosen},
+                         tuple(old))
     write_text_atomic(out / "build_report.json", json.dumps(report.to_dict(), indent=1) + "\n")
     return report

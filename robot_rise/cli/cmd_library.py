@@ -164,6 +164,8 @@ def _build(args: argparse.Namespace) -> int:
         print(f"  proven   {row['lying']:7s} {row['name']:26s} {row['duration_s']:6.2f} s")
     for name, reason in report.failed.items():
         print(f"  failed   {report.lying.get(name, ''):7s} {name:26s} {reason}")
+    for row in report.kept:
+        print(f"  kept     {row.get('lying', ''):7s} {row.get('name', ''):26s} (not rebuilt)")
     for kind in report.kinds_without_motion():
         print(f"  no proven motion for lying {kind}: rise from {kind} postures will fail on this robot")
     return EXIT_OK if report.written else EXIT_FAILURE
