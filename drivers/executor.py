@@ -47,7 +47,6 @@ from drivers.safety import (
     limp_pwm_ramp,
     require_inside_limits,
     safe_target,
-    tilt_of_quaternion,
 )
 from drivers.startup import RecoveryReport, arm_watchdog, disarm_watchdog, recover
 
@@ -409,7 +408,7 @@ class Executor:
                     if not sample.valid:
                         imu_lost += 1
                     elif cfg.expected_tilt is not None and tau >= -1e-9:
-                        tilt, should = tilt_of_quaternion(sample.quat_wxyz), cfg.expected_tilt.at(tau)
+                        tilt, should = sample.tilt_rad, cfg.expected_tilt.at(tau)
                         tilt_beyond, falling = evaluate_tilt(tilt, should, cfg.expected_tilt.tolerance_rad, tilt_beyond,
                                                              cfg.expected_tilt.debounce_cycles(dt))
                         found = [*found, *falling]

@@ -293,6 +293,13 @@ class ImuSample:
             return _NAN3
         return _matrix_to_rpy(_quat_to_matrix(self.quat_wxyz))
 
+    @property
+    def tilt_rad(self) -> float:
+        """Angle between the torso's z axis and the world vertical [rad] (NaN when the read failed)."""
+        if not self.valid:
+            return math.nan
+        return math.acos(max(-1.0, min(1.0, float(_quat_to_matrix(self.quat_wxyz)[2, 2]))))
+
 
 @runtime_checkable
 class Imu(Protocol):

@@ -38,7 +38,6 @@ __all__ = [
     "TILT_DEBOUNCE_S",
     "ExpectedTilt",
     "evaluate_tilt",
-    "tilt_of_quaternion",
     "StopPolicy",
     "FaultKind",
     "Fault",
@@ -271,15 +270,6 @@ class ExpectedTilt:
     def debounce_cycles(self, dt_s: float) -> int:
         """Consecutive cycles of ``dt_s`` [s] beyond the tolerance that make a fault (at least 1)."""
         return max(1, int(math.ceil(self.debounce_s / dt_s - 1e-9)))
-
-
-def tilt_of_quaternion(quat_wxyz: Sequence[float]) -> float:
-    """Angle between a frame's z axis and the world vertical [rad], from its orientation (w, x, y, z)."""
-    w, x, y, z = (float(v) for v in quat_wxyz)
-    norm = w * w + x * x + y * y + z * z
-    if not (norm > 0 and math.isfinite(norm)):
-        return math.nan
-    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / norm)))  # R[2, 2]
 
 
 def evaluate_tilt(tilt_rad: float, expected_rad: float, tolerance_rad: float, beyond_cycles: int,

@@ -19,6 +19,7 @@ from drivers.imu import (
     OPENCR_MODEL_NUMBER,
     STANDARD_GRAVITY_M_S2,
     Imu,
+    ImuSample,
     ImuStatus,
     OpenCrImu,
     decode_imu_block,
@@ -187,3 +188,15 @@ def test_that_one_bulk_read_can_carry_the_servos_feedback_and_the_imu(servo_map:
     assert accel == pytest.approx((0.0, 0.0, STANDARD_GRAVITY_M_S2))
     # the OP3 node firmware has no Fast Bulk Read: the OpenCR's item breaks that frame (read it plainly)
     assert not rig.bus.bulk_read(items, fast=True).complete
+
+
+def test_that_the_tilt_of_a_sample_is_its_z_axis_from_the_vertical() -> None:
+    def tilt(q: tuple[float, float, float, float]) -> float:
+        return ImuSample(0.0, quat_wxyz=q).tilt_rad
+
+    assert tilt((1.0, 0.0, 0.0, 0.0)) == pytest.approx(0.0)
+    half = np.radians(30.0) / 2
+    assert tilt((np.cos(half), np.sin(half), 0.0, 0.0)) == pytest.approx(np.radians(30.0))  # roll
+    assert tilt((np.cos(half), 0.0, 0.0, np.sin(half))) == pytest.approx(0.0)  # yaw is no tilt
+    assert tilt((0.0, 0.0, 1.0, 0.0)) == pytest.approx(np.pi)  # upside down
+    assert np.isnan(ImuSample(0.0, status=ImuStatus.NO_REPLY).tilt_rad)

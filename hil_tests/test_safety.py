@@ -9,7 +9,6 @@ from drivers.errors import SafetyError
 from drivers.safety import (
     ExpectedTilt,
     evaluate_tilt,
-    tilt_of_quaternion,
     FaultKind,
     SafetyLimits,
     approach_path,
@@ -209,15 +208,6 @@ def test_that_malformed_expected_positions_are_refused() -> None:
                 dict(tolerance_rad=np.full(2, 0.1)), dict(q_rad=np.full((2, 3), np.nan))):
         with pytest.raises(SafetyError, match="expected positions"):
             ExpectedPositions(**{"t_s": t, "q_rad": q, "tolerance_rad": np.full(3, 0.1), **bad})
-
-
-def test_that_the_tilt_of_an_orientation_is_its_z_axis_from_the_vertical() -> None:
-    assert tilt_of_quaternion((1.0, 0.0, 0.0, 0.0)) == pytest.approx(0.0)
-    half = np.radians(30.0) / 2
-    assert tilt_of_quaternion((np.cos(half), np.sin(half), 0.0, 0.0)) == pytest.approx(np.radians(30.0))  # roll
-    assert tilt_of_quaternion((np.cos(half), 0.0, 0.0, np.sin(half))) == pytest.approx(0.0)  # yaw is no tilt
-    assert tilt_of_quaternion((0.0, 0.0, 1.0, 0.0)) == pytest.approx(np.pi)  # upside down
-    assert np.isnan(tilt_of_quaternion((np.nan, 0.0, 0.0, 0.0)))
 
 
 def test_that_a_torso_off_its_expected_tilt_is_falling_only_after_the_debounce() -> None:
