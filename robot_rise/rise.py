@@ -309,7 +309,9 @@ def rise(
         say(f"filtering {conn.motion} in MuJoCo")
         motion = library.get(conn.motion)
         # a momentum motion stands only near its own timing: slowing it further is wasted replays
-        motion_config = dataclasses.replace(filter_config, motion_max_stretch=motion.max_stretch)
+        # and one the ensemble's one-at-a-time differences miss is proven on combined ones too
+        motion_config = dataclasses.replace(filter_config, motion_max_stretch=motion.max_stretch,
+                                            combined_variants=motion.combined_variants)
         commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=filter_config.blend_s)
         commanded = commanded.with_report(
             **planned.trajectory.report,

@@ -356,6 +356,24 @@ def test_a_momentum_motion_carries_its_timing_window_from_strategy_to_library(tm
         read_strategy(tmp_path / "s.json")
 
 
+def test_a_motion_fragile_from_random_starts_carries_its_combined_variants_from_strategy_to_library(tmp_path: Path) -> None:
+    assert next(s for s in load_strategies() if s.name == "supine_situp_rock_robust").combined_variants == 8
+    assert LIBRARY.get("supine_situp_rock_robust").combined_variants == 8
+    assert LIBRARY.get("supine_backroll_kneel").combined_variants == 0
+    lib = tmp_path / "lib"
+    shutil.copytree(default_library_dir(), lib)
+    index = json.loads((lib / "index.json").read_text())
+    for bad in (-1, 2.5, True, 99):
+        index["motions"][0]["combined_variants"] = bad
+        (lib / "index.json").write_text(json.dumps(index))
+        with pytest.raises(FormatError, match="combined_variants .* must be a whole number in 0..16"):
+            load_library(lib)
+    src = json.loads((configs_dir() / "strategies" / "supine_situp_rock_robust.json").read_text())
+    (tmp_path / "s.json").write_text(json.dumps({**src, "combined_variants": "8"}))
+    with pytest.raises(FormatError, match="combined_variants '8' must be a whole number"):
+        read_strategy(tmp_path / "s.json")
+
+
 def test_a_partial_build_counts_the_motions_it_kept_when_it_names_the_kinds_without_one() -> None:
     from robot_rise.authoring.build import BuildReport
 

@@ -163,3 +163,27 @@ def test_a_foot_resting_against_the_torso_where_it_lies_is_not_a_self_collision_
     assert result.proven, result.reason
     grown = [v for v in Proof.from_dict(result.trajectory.report).ensemble if v.label == "collision shapes +3 mm"]
     assert len(grown) == 1 and grown[0].standing
+
+
+def test_a_momentum_motion_joined_where_it_is_fragile_is_refused_by_its_combined_variants(robot):
+    # supine_1_042 of the 300 protocol: the sit-up joined from here passed all 19 one-difference
+    # variants yet stood in only 30 of 50 random ones; its combined variants catch that, and rise
+    # returns a get-up that stands on them
+    from pathlib import Path
+
+    from robot_rise.filter import FilterConfig
+    from robot_rise.filter.ensemble import EnsembleReplayer
+    from robot_rise.posture import read_posture
+    from robot_rise.sim.variants import ENSEMBLE, combined_variants
+
+    situp = load_library(robot_name=robot.library).get("supine_situp_rock_robust")
+    assert situp.combined_variants == 8
+    start = read_posture(Path(__file__).parent / "data" / "supine_situp_fragile_join.json")
+    result = rise(robot, start, seed=1)
+    assert result.proven, result.reason
+    tried = [a for a in result.attempts if a.motion == situp.name]
+    assert tried and not tried[0].proven and "combined variant" in tried[0].filter_reason
+    proof = Proof.from_dict(result.trajectory.report)
+    assert result.trajectory.report["motion"] != situp.name and len(proof.ensemble) == len(ENSEMBLE)
+    replayed = EnsembleReplayer(robot, "flat", variants=combined_variants(8)).replay(result.trajectory, config=FilterConfig())[0]
+    assert replayed.all_stand, replayed.failures()

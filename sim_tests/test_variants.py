@@ -125,3 +125,25 @@ def test_that_dataclass_fields_of_a_variant_are_plain_values():
     for v in ENSEMBLE + random_variants(3, 0):
         for f in dataclasses.fields(v):
             assert isinstance(getattr(v, f.name), (str, int, float, bool, type(None))), f.name
+
+
+def test_that_combined_variants_are_fixed_draws_that_a_proof_replays_and_check_replays_again(tmp_path, capsys):
+    import json
+
+    from robot_rise.paths import configs_dir
+    from robot_rise.sim.variants import COMBINED_SEED, combined_variants
+    from robot_rise.trajectory import write_trajectory
+
+    two = combined_variants(2)
+    assert [v.label for v in two] == ["combined variant 0", "combined variant 1"]
+    assert [dataclasses.replace(v, label="") for v in two] == [dataclasses.replace(v, label="") for v in random_variants(2, COMBINED_SEED)]
+    tr = read_trajectory(configs_dir() / "motions" / "op3" / "supine_situp_rock_robust.json")
+    path = tmp_path / "t.json"
+    write_trajectory(path, dataclasses.replace(tr, report={**tr.report, "combined_variants": 2}))
+    main(["check", str(path), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    labels = [v["label"] for v in report["ensemble"]["variants"]]
+    assert len(labels) == len(ENSEMBLE) + 2 and labels[-2:] == ["combined variant 0", "combined variant 1"]
+    # and a file proven without them replays the ensemble alone
+    main(["check", str(configs_dir() / "motions" / "op3" / "supine_situp_rock_robust.json"), "--json"])
+    assert json.loads(capsys.readouterr().out)["ensemble"]["size"] == len(ENSEMBLE)

@@ -208,6 +208,7 @@ def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -
                 retime=s.retime,
                 clamp_lead=s.clamp_lead,
                 max_stretch=s.max_stretch,
+                combined_variants=s.combined_variants,
             )
         )
     return tuple(out)
@@ -369,6 +370,7 @@ def author_library(
             "connect_until_s": connect_until_s,
             "duration_s": round(tr.duration_s, 3),
             **({"max_stretch": spec.max_stretch} if spec.max_stretch is not None else {}),
+            **({"combined_variants": spec.combined_variants} if spec.combined_variants else {}),
         }
         entries.append(row)
         old_rows[spec.name] = row

@@ -6,7 +6,8 @@ import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import EnsembleReplayer, EnsembleResult, FilterConfig, prove, replay_random_variants, scene_digest, with_ensemble
+from robot_rise.filter import (EnsembleReplayer, EnsembleResult, FilterConfig, proven_combined_variants, prove, replay_random_variants,
+                               scene_digest, with_ensemble)
 from robot_rise.validity import ValidityChecker
 
 
@@ -48,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
         )
     proven_in = tr.report.get("scene")
     other_scene = bool(tr.report.get("scene_digest")) and tr.report.get("scene_digest") != scene_digest(args.scene)
-    config = FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble)
+    # the combined variants its proof replayed are part of the proof: replayed again
+    config = FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble, combined_variants=proven_combined_variants(tr))
     _, verdict, proof = prove(robot, tr, scene=args.scene, config=config)
     if config.ensemble:
         proof = with_ensemble(proof, EnsembleReplayer(robot, args.scene).replay(tr, config=config)[0])

@@ -35,7 +35,15 @@ from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
-from robot_rise.filter.ensemble import EnsembleReplayer, EnsembleResult, check, replay_random_variants, with_ensemble
+from robot_rise.filter.ensemble import (
+    COMBINED_VARIANTS_KEY,
+    EnsembleReplayer,
+    EnsembleResult,
+    check,
+    proven_combined_variants,
+    replay_random_variants,
+    with_ensemble,
+)
 from robot_rise.filter.prediction import PREDICTED_KEY, PredictedPositions, expected_positions_of, predicted_positions
 from robot_rise.filter.proof import Permit, Proof, VariantVerdict, execution_permit, prove, scene_digest
 from robot_rise.filter.robustness import stands_under
@@ -77,6 +85,8 @@ __all__ = [
     "EnsembleResult",
     "VariantVerdict",
     "replay_random_variants",
+    "proven_combined_variants",
+    "COMBINED_VARIANTS_KEY",
     "with_ensemble",
     "execution_permit",
     "scene_digest",

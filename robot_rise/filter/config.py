@@ -48,6 +48,9 @@ class FilterConfig:
             ensemble's rounds slow the part from ``join_row`` on beyond this multiple of its
             commanded duration (None: no window of its own). ``rise`` sets it per candidate.
         ensemble: prove on every model variant too (``robot_rise.sim.variants.ENSEMBLE``).
+        combined_variants: with ``ensemble``, also prove on the first this many combined random
+            variants (``robot_rise.sim.variants.combined_variants``); ``rise`` sets it per
+            candidate from ``robot_rise.library.Motion.combined_variants``.
         ensemble_rounds: times a motion some variant falls with is slowed and proven again.
     """
 
@@ -68,4 +71,5 @@ class FilterConfig:
     max_stretch: float | None = None
     motion_max_stretch: float | None = None
     ensemble: bool = True
+    combined_variants: int = 0
     ensemble_rounds: int = 3

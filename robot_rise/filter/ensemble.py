@@ -28,10 +28,13 @@ from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.standing import judge
-from robot_rise.sim.variants import ENSEMBLE, ModelVariant, random_variants, variant_start, variant_trajectory
+from robot_rise.sim.variants import ENSEMBLE, ModelVariant, combined_variants, random_variants, variant_start, variant_trajectory
 from robot_rise.trajectory import Trajectory
 
-__all__ = ["EnsembleResult", "EnsembleReplayer", "with_ensemble", "check", "replay_random_variants"]
+__all__ = ["COMBINED_VARIANTS_KEY", "EnsembleResult", "EnsembleReplayer", "with_ensemble", "check", "replay_random_variants",
+           "proven_combined_variants"]
+
+COMBINED_VARIANTS_KEY = "combined_variants"  # the trajectory report's entry: combined variants its proof replayed
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,10 @@ class EnsembleReplayer:
         variants: the model variants (default: the ensemble).
         threads: replays run at once (default: the CPUs this process may use).
 
+    A config with ``combined_variants`` adds that many combined variants
+    (``robot_rise.sim.variants.combined_variants``) after ``variants``; their players are built
+    on first use and kept.
+
     Not thread-safe itself (each Player is used by one thread at a time).
     """
 
@@ -95,23 +102,39 @@ class EnsembleReplayer:
         self.scene = scene
         self.variants = tuple(variants)
         self.players = [Player(robot, scene, variant=v) for v in self.variants]
-        self.threads = max(1, min(len(self.variants), threads or len(os.sched_getaffinity(0))))
+        self.threads = max(1, threads or len(os.sched_getaffinity(0)))
+        self._combined: list[Player] = []
+
+    def _variants_and_players(self, combined: int) -> tuple[tuple[ModelVariant, ...], list[Player]]:
+        extra = combined_variants(combined)
+        while len(self._combined) < combined:
+            self._combined.append(Player(self.robot, self.scene, variant=extra[len(self._combined)]))
+        return self.variants + extra, self.players + self._combined[:combined]
 
     def replay(self, trajectory: Trajectory, *, start: Posture | None = None,
                config: FilterConfig = FilterConfig()) -> tuple[EnsembleResult, list[Recording]]:
         """Replay ``trajectory`` (from ``start``, default its own) on every variant; judge each."""
         start = start or trajectory.start
+        variants, players = self._variants_and_players(config.combined_variants)
 
         def one(k: int) -> Recording:
-            v = self.variants[k]
-            return self.players[k].play(variant_trajectory(trajectory, v), variant_start(start, self.robot, v), hold_s=config.hold_s)
+            v = variants[k]
+            return players[k].play(variant_trajectory(trajectory, v), variant_start(start, self.robot, v), hold_s=config.hold_s)
 
-        if self.threads == 1:
-            recs = [one(k) for k in range(len(self.variants))]
+        threads = min(self.threads, len(variants))
+        if threads == 1:
+            recs = [one(k) for k in range(len(variants))]
         else:
-            with ThreadPoolExecutor(self.threads) as pool:
-                recs = list(pool.map(one, range(len(self.variants))))
-        return EnsembleResult(tuple(_verdict(v, r, config) for v, r in zip(self.variants, recs))), recs
+            with ThreadPoolExecutor(threads) as pool:
+                recs = list(pool.map(one, range(len(variants))))
+        return EnsembleResult(tuple(_verdict(v, r, config) for v, r in zip(variants, recs))), recs
+
+
+def proven_combined_variants(trajectory: Trajectory) -> int:
+    """How many combined variants ``trajectory``'s proof replayed besides the ensemble (0 for files
+    written before them, or proven without): what a replay of its proof must replay again."""
+    n = trajectory.report.get(COMBINED_VARIANTS_KEY, 0)
+    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else 0
 
 
 def with_ensemble(proof: Proof, result: EnsembleResult) -> Proof:
@@ -139,6 +162,7 @@ def check(
     """
     if scene is None:
         scene = str(trajectory.report.get("scene") or "flat")
+    config = dataclasses.replace(config, combined_variants=proven_combined_variants(trajectory))
     proof = prove(robot, trajectory, scene=scene, config=config)[2]
     if not config.ensemble:
         return proof
@@ -156,4 +180,5 @@ def replay_random_variants(
 ) -> EnsembleResult:
     """Replay on ``n`` random variants drawn from the ensemble's ranges (``random_variants``): the
     share that stands is the trajectory's margin, measured on models it was not proven on."""
+    config = dataclasses.replace(config, combined_variants=0)  # only the random draws
     return EnsembleReplayer(robot, scene, variants=random_variants(n, seed)).replay(trajectory, config=config)[0]

@@ -45,7 +45,7 @@ import numpy as np
 
 from robot_rise.filter.command_limits import COMMAND_LIMITS_KEY, CommandLimits, command_limits_for, conform
 from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.ensemble import EnsembleReplayer, with_ensemble
+from robot_rise.filter.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, with_ensemble
 from robot_rise.filter.join import time_scale
 from robot_rise.filter.prediction import PREDICTED_KEY, predicted_positions
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
@@ -174,6 +174,7 @@ def dynamics_filter(
         result, recs = again, []
     # what the executor needs: the limits it was proven under, the positions to expect
     executed = {COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
+                COMBINED_VARIANTS_KEY: config.combined_variants,
                 "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds}
     return dataclasses.replace(result, report={**result.report, **executed},
                                trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **executed}))

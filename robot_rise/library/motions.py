@@ -18,7 +18,7 @@ from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, read_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
 
-__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
+__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
 
 LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
@@ -37,6 +37,8 @@ def robot_library_dir(robot: Robot) -> Path:
     shipped = default_library_dir(robot.library)
     return shipped if not own.is_dir() and shipped.is_dir() else own
 
+MAX_COMBINED_VARIANTS = 16  # combined variants a motion's proofs may ask for: each is one more replay of every proof
+
 
 @dataclass(frozen=True)
 class Motion:
@@ -51,6 +53,8 @@ class Motion:
         connect_until_s: end of the lying-to-sitting/squatting phase [s].
         max_stretch: how far it may be slowed and still stand, a multiple of its duration (None:
             no bound of its own; ``robot_rise.library.strategies.KeyframedMotion.max_stretch``).
+        combined_variants: combined random variants its proofs replay besides the ensemble
+            (``robot_rise.library.strategies.KeyframedMotion.combined_variants``).
     """
 
     name: str
@@ -60,6 +64,7 @@ class Motion:
     start: Posture
     connect_until_s: float
     max_stretch: float | None = None
+    combined_variants: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -132,6 +137,9 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
         stretch = row.get("max_stretch")
         if stretch is not None and not (isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch >= 1.0):
             raise FormatError(f"{where}: max_stretch {stretch!r} must be a number >= 1 (a multiple of the motion's duration)")
+        combined = row.get("combined_variants", 0)
+        if not (isinstance(combined, int) and not isinstance(combined, bool) and 0 <= combined <= MAX_COMBINED_VARIANTS):
+            raise FormatError(f"{where}: combined_variants {combined!r} must be a whole number in 0..{MAX_COMBINED_VARIANTS}")
         motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut,
-                              None if stretch is None else float(stretch)))
+                              None if stretch is None else float(stretch), combined))
     return MotionLibrary(str(obj.get("robot", robot_name)), root, tuple(motions))

@@ -32,6 +32,8 @@ __all__ = [
     "TICK_RAD",
     "CONTROL_PERIOD_S",
     "random_variants",
+    "COMBINED_SEED",
+    "combined_variants",
     "apply_to_model",
     "variant_trajectory",
     "variant_start",
@@ -174,6 +176,17 @@ def random_variants(n: int, seed: int, ranges: VariantRanges = VARIANT_RANGES) -
             start_spread_rad=ranges.start_spread_rad,
         ))
     return tuple(out)
+
+
+COMBINED_SEED = 1000  # the proof's combined variants: not the seeds `check --variants` (0) and the benches (1) draw
+
+
+def combined_variants(n: int) -> tuple[ModelVariant, ...]:
+    """The first ``n`` combined variants a proof may replay besides the ensemble: random
+    variants of a fixed seed, so every proof of a motion replays the same models and
+    ``robot-rise check`` can replay them again."""
+    return tuple(dataclasses.replace(v, label=f"combined variant {i}")
+                 for i, v in enumerate(random_variants(n, COMBINED_SEED)))
 
 
 def apply_to_model(m: mujoco.MjModel, index: ModelIndex, variant: ModelVariant) -> None:
