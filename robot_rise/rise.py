@@ -21,7 +21,9 @@ import numpy as np
 from robot_rise.constants import APPROACH_OFF_PLAN_RAD
 from robot_rise.errors import PostureError, RobotRiseError
 from robot_rise.filter import (
+    ARRIVAL_SETTLE_S,
     COMMAND_LIMITS_KEY,
+    TAIL_MAX_STRETCH,
     PREDICTED_KEY,
     EnsembleReplayer,
     FilterConfig,
@@ -30,14 +32,20 @@ from robot_rise.filter import (
     command_limits_for,
     conform,
     dynamics_filter,
+    gravity_angle_rad,
     join_with_blend,
     predicted_positions,
     prove,
+    prove_composed,
+    prove_start,
+    settled_start,
+    StartProof,
     stands_under,
     with_ensemble,
 )
 from robot_rise.sim.variants import ModelVariant
-from robot_rise.library import Connection, FrameIndex, KMeansTree, MotionLibrary, connecting_posture, connection_candidates, load_library, lying_frames, robot_library_dir
+from robot_rise.library import (Connection, FrameIndex, KMeansTree, Motion, MotionLibrary, connecting_posture, connection_candidates, load_library,
+                                lying_frames, robot_library_dir)
 from robot_rise.model import Robot
 from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
@@ -137,6 +145,21 @@ class RiseContext:
     tree: KMeansTree
     _obstacle_checker: ValidityChecker | None = field(default=None, repr=False)
     _ensemble: EnsembleReplayer | None = field(default=None, repr=False)
+    _start_proofs: dict[str, StartProof | None] = field(default_factory=dict, repr=False)
+
+    def start_proof(self, motion: Motion, config: FilterConfig = FilterConfig()) -> StartProof | None:
+        """The motion proven from rest on its first targets on every variant
+        (:func:`robot_rise.filter.prove_start`), None where the nominal model does not prove it;
+        computed on first use (``warm_start_proofs`` does all at once), then reused."""
+        if motion.name not in self._start_proofs:
+            config = dataclasses.replace(config, combined_variants=motion.combined_variants)
+            rec, _, nominal = prove(self.robot, settled_start(motion.trajectory), scene=self.scene, config=config, start=motion.start)
+            self._start_proofs[motion.name] = prove_start(motion.name, motion.trajectory, self.ensemble(), config, rec) if nominal.proven else None
+        return self._start_proofs[motion.name]
+
+    def warm_start_proofs(self, config: FilterConfig = FilterConfig()) -> int:
+        """Every library motion's start proof now (what a live get-up precomputes per robot); how many compose."""
+        return sum(self.start_proof(m, config) is not None for m in self.library.motions)
 
     def ensemble(self) -> EnsembleReplayer:
         """The model variants' players in this scene (built on first use, then reused)."""
@@ -235,6 +258,7 @@ def rise(
     retries: int = DEFAULT_RETRIES,
     robustness: tuple[ModelVariant, ...] = (),
     candidate_rank: str = DEFAULT_CANDIDATE_RANK,
+    composed: bool = False,
 ) -> RiseResult:
     """Select, plan, filter and prove a get-up from ``start``.
 
@@ -259,11 +283,53 @@ def rise(
         candidate_rank: ``"duration"`` tries first the motion with the shortest expected get-up
             (approach + rest of the motion), ``"distance"`` the nearest (paper 000);
             :func:`robot_rise.library.connection_candidates`.
+        composed: prove the ensemble by composition where it applies
+            (:mod:`robot_rise.filter.composed`: the approach arrives at rest at the library
+            motion's start, the variants replay only that, the motion's own proof does the rest):
+            the live get-up's first command sooner, for ``ARRIVAL_SETTLE_S`` more robot time.
+            Every candidate is tried composed first (cheap: the nominal replay and the variants'
+            arrivals); when none is proven so, the candidates are proven whole, as without it.
 
     Raises:
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
     """
     say = progress or (lambda s: None)
+    if composed and filter_config.ensemble:
+        if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
+            context = RiseContext.build(robot, scene, library)  # one for both passes
+        first = _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, say, context, library,
+                                 robustness, candidate_rank, composed=True)
+        if first.proven:
+            return first
+        say("no candidate proven composed: proving them whole")
+        whole = rise(robot, start, scene=scene, key=key, seed=seed, budget_s=budget_s, library=library, candidates=candidates,
+                     filter_config=filter_config, progress=progress, context=context, retries=retries, robustness=robustness,
+                     candidate_rank=candidate_rank)
+        return dataclasses.replace(whole, attempts=first.attempts + whole.attempts)
+    return _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, say, context, library,
+                            robustness, candidate_rank, composed=False, retries=retries, progress=progress)
+
+
+def _rise_candidates(
+    robot: Robot,
+    start: Posture,
+    scene: str | os.PathLike[str] | None,
+    key: Posture | None,
+    seed: int,
+    budget_s: float,
+    candidates: int,
+    filter_config: FilterConfig,
+    say: Callable[[str], None],
+    context: RiseContext | None,
+    library: MotionLibrary | None,
+    robustness: tuple[ModelVariant, ...],
+    candidate_rank: str,
+    *,
+    composed: bool,
+    retries: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> RiseResult:
+    """:func:`rise`'s candidates, each proven composed (``composed``) or whole."""
     if filter_config.max_stretch is None:
         filter_config = dataclasses.replace(filter_config, max_stretch=MAX_STRETCH)
     start = admit_posture(start, robot, where="start posture")
@@ -285,6 +351,8 @@ def rise(
     best_unproven: FilterResult | None = None
     best_proven: RiseResult | None = None
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
+        if composed and conn.frame != 0:  # a composed proof starts where the motion's own proof started
+            conn = dataclasses.replace(conn, frame=0, time_s=0.0)
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         try:
@@ -312,15 +380,18 @@ def rise(
         # and one the ensemble's one-at-a-time differences miss is proven on combined ones too
         motion_config = dataclasses.replace(filter_config, motion_max_stretch=motion.max_stretch,
                                             combined_variants=motion.combined_variants)
+        if composed:
+            quick, why = _composed_candidate(robot, planned.trajectory, motion, conn, start, scene, motion_config, context)
+            t2 = time.monotonic()
+            attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, True, proven=quick is not None,
+                                        filter_reason="" if quick is not None else f"composed: {why}",
+                                        seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": 0.0}))
+            if quick is not None:
+                tr = quick.trajectory.with_report(attempts=[a.describe() for a in attempts], seconds=attempts[-1].seconds, robustness={})
+                return RiseResult(True, tr, tuple(attempts), "", quick)
+            continue
         commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=filter_config.blend_s)
-        commanded = commanded.with_report(
-            **planned.trajectory.report,
-            motion=conn.motion,
-            connecting_frame=conn.frame,
-            connecting_distance=conn.distance,
-            plan_duration_s=planned.trajectory.duration_s,
-            plan_rows=len(planned.trajectory.t),
-        )
+        commanded = commanded.with_report(**_join_report(planned.trajectory, conn))
         result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
                                  ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
         if not result.proven and planned.smoothed is not None and _approach_off_plan(result, len(planned.trajectory.t)):
@@ -373,6 +444,54 @@ def rise(
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
 
 
+def _join_report(plan: Trajectory, conn: Connection) -> dict[str, Any]:
+    """The report entries of a planned approach joined to a library motion."""
+    return {**plan.report, "motion": conn.motion, "connecting_frame": conn.frame, "connecting_distance": conn.distance,
+            "plan_duration_s": plan.duration_s, "plan_rows": len(plan.t)}
+
+
+def _composed_candidate(
+    robot: Robot,
+    plan: Trajectory,
+    motion: Motion,
+    conn: Connection,
+    start: Posture,
+    scene: str | os.PathLike[str] | None,
+    config: FilterConfig,
+    context: RiseContext,
+) -> tuple[FilterResult | None, str]:
+    """The approach, ``ARRIVAL_SETTLE_S`` on the motion's first targets, the motion unchanged:
+    filtered on the nominal model (the motion part never slowed), its ensemble proof composed
+    (:func:`robot_rise.filter.composed.prove_composed`). (None, why) where that is not proven."""
+    cols = [motion.trajectory.joint_names.index(j) for j in plan.joint_names]
+    first = motion.trajectory.q[0, cols]
+    step = float(np.max(np.abs(plan.q[-1] - first)))
+    if step > 0.0:  # the plan ends within the limits the library's first row may graze: go there first
+        gap = max(config.blend_s, step / 2.0)
+        root = None if plan.root is None else np.vstack([plan.root, plan.root[-1:]])
+        plan = dataclasses.replace(plan, t=np.append(plan.t, plan.t[-1] + gap), q=np.vstack([plan.q, first]), root=root)
+    commanded = join_with_blend(plan, motion.trajectory, 0, blend_s=ARRIVAL_SETTLE_S).with_report(**_join_report(plan, conn))
+    join_row = len(plan.t)
+    t0 = time.perf_counter()
+    nominal = dynamics_filter(robot, commanded, scene=scene, config=dataclasses.replace(config, ensemble=False, motion_max_stretch=TAIL_MAX_STRETCH),
+                              start=start, join_row=join_row)
+    if not nominal.proven:
+        return None, f"the nominal filter, the library part unchanged: {nominal.reason}"
+    t1 = time.perf_counter()
+    start_proof = context.start_proof(motion)
+    if start_proof is None or not start_proof.all_stand:
+        return None, "the motion does not stand from rest on its first targets on every variant"
+    found = prove_composed(nominal.proof, nominal.recording, nominal.trajectory, join_row=join_row, motion_trajectory=motion.trajectory,
+                           start_proof=start_proof, start=start, replayer=context.ensemble(), config=config)
+    if found is None:
+        return None, "does not apply (another scene, or the library part reshaped)"
+    if not found.proof.proven:
+        return None, "; ".join(found.proof.problems[:3])
+    report = {**found.report, "ensemble_seconds": time.perf_counter() - t1, "ensemble_rounds": 0, "nominal_filter_seconds": t1 - t0}
+    return dataclasses.replace(nominal, trajectory=nominal.trajectory.with_report(**report), proof=found.proof,
+                               report={**nominal.report, **report}), ""
+
+
 def _approach_off_plan(result: FilterResult, plan_rows: int) -> bool:
     """The simulated body ended the planned approach lying otherwise than planned: its gravity
     direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's."""
@@ -380,16 +499,8 @@ def _approach_off_plan(result: FilterResult, plan_rows: int) -> bool:
     if tr.root is None or not 0 < plan_rows <= len(tr.t) or len(rec.t) == 0:
         return False
     k = min(int(np.searchsorted(rec.t, tr.t[plan_rows - 1])), len(rec.t) - 1)
-    return bool(_gravity_angle(rec.root_pose[k, 3:], tr.root[plan_rows - 1, 3:]) > APPROACH_OFF_PLAN_RAD)
+    return bool(gravity_angle_rad(rec.root_pose[k, 3:], tr.root[plan_rows - 1, 3:]) > APPROACH_OFF_PLAN_RAD)
 
-
-def _gravity_angle(qa: np.ndarray, qb: np.ndarray) -> float:
-    """Angle between the world's vertical seen from two root orientations (wxyz) [rad]: how
-    differently two bodies lie, whatever their heading."""
-    def down(q: np.ndarray) -> np.ndarray:
-        w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])  # R^T e_z
-    return float(np.arccos(np.clip(down(qa) @ down(qb), -1.0, 1.0)))
 
 
 def _rise_again_from_where_it_fell(

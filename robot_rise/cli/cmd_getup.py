@@ -13,7 +13,7 @@ import dataclasses
 import math
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -281,11 +281,14 @@ class LiveSession:
 
 @contextlib.contextmanager
 def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
-                      stock: bool = False) -> Iterator[LiveSession]:
+                      stock: bool = False, composed: bool = False,
+                      say: Callable[[str], None] | None = None) -> Iterator[LiveSession]:
     """Connect (real bus, or the emulated bus with the OpenCR and, with --twin, the physics twin
     on a simulated clock), preflight, find the IMU; precompute the per-robot parts (rise context
     with the ensemble's players, the posture estimator). ``stock``: the stock OP3's keyframe
-    planner instead (comparison)."""
+    planner instead (comparison). ``composed``: proofs composed with the library motions' start
+    proofs (``robot_rise.filter.composed``), all precomputed here (a guard waits for falls; a
+    one-shot get-up would spend more on them than they save)."""
     from drivers.clock import FakeClock
     from drivers.imu import OpenCrImu
     from drivers.mockbus.emulated_imu import EmulatedImu
@@ -333,7 +336,12 @@ def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
             planner = KeyframePlanner(robot, context.library)
         else:
             context.ensemble()  # the variants' players, built now rather than at the first fall
-            planner = RisePlanner(context, budget_s=args.budget)
+            if composed:
+                t_warm = time.monotonic()
+                (say or (lambda s: None))(f"proving the {len(context.library.motions)} library motions from rest on every model variant (once per start)")
+                ready = context.warm_start_proofs()
+                (say or (lambda s: None))(f"{ready} of {len(context.library.motions)} compose ({time.monotonic() - t_warm:.0f} s)")
+            planner = RisePlanner(context, budget_s=args.budget, composed=composed)
         estimator = PostureEstimator(robot, args.scene, checker=context.checker)
         io = BusRobotIO(robot, smap, conn, imu_dev, simulated=twin is not None, twin=twin, allow_unproven=stock)
         yield LiveSession(robot, io, planner, estimator, twin, time.monotonic() - t0)

@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", type=float, nargs=2, metavar=("LOW", "HIGH"), default=(20.0, 60.0),
                    help="push strength range [N], each push 0.1 s at the torso (default 20 60)")
     p.add_argument("--json", action="store_true", help="print the pushes (or events) as JSON")
+    p.add_argument("--whole-proofs", action="store_true",
+                   help="replay every get-up whole on every model variant instead of composing its proof with the library "
+                        "motions' own, precomputed at start (slower first command, no settle before the library motion)")
     p.set_defaults(func=run)
 
 
@@ -97,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
         raise RobotRiseError(f"--duration {args.duration}: must be > 0")
     stock = args.scheme == "stock"
     config = scheme_config(args.scheme, GetUpConfig(attempts=args.attempts))
-    with open_live_session(args, stock=stock) as s:
+    say = (lambda s: None) if args.json else (lambda s: print(s, flush=True))
+    with open_live_session(args, stock=stock, composed=not (stock or args.whole_proofs), say=say) as s:
         io = s.io
         if not args.json:
             print(f"robot {s.robot.name} on {io.connection.url}: {len(io.map)} servos and the IMU answer; "

@@ -30,6 +30,19 @@ from robot_rise.filter.command_limits import (
     conform,
     match_command_limits,
 )
+from robot_rise.filter.composed import (
+    ARRIVAL_SETTLE_S,
+    COMPOSED_KEY,
+    TAIL_MAX_STRETCH,
+    Arrival,
+    ComposedProof,
+    RestPose,
+    StartProof,
+    gravity_angle_rad,
+    prove_composed,
+    prove_start,
+    settled_start,
+)
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
@@ -88,6 +101,17 @@ __all__ = [
     "proven_combined_variants",
     "COMBINED_VARIANTS_KEY",
     "with_ensemble",
+    "prove_composed",
+    "prove_start",
+    "settled_start",
+    "StartProof",
+    "RestPose",
+    "ComposedProof",
+    "Arrival",
+    "ARRIVAL_SETTLE_S",
+    "TAIL_MAX_STRETCH",
+    "COMPOSED_KEY",
+    "gravity_angle_rad",
     "execution_permit",
     "scene_digest",
     "stands_under",

@@ -179,7 +179,8 @@ def predicted_positions(recording: Recording, *, ensemble: Sequence[Recording] =
     Args:
         recording: the nominal replay of the trajectory as it will be streamed (the proof's).
         ensemble: replays of the same trajectory on the model variants (same joints); their
-            spread around ``recording`` widens each joint's tolerance.
+            spread around ``recording`` widens each joint's tolerance. A replay of a first part
+            of the trajectory only (``robot_rise.filter.composed``) counts over that part.
         rate_hz: rows per second of the table [Hz].
         floor_rad: smallest tolerance [rad].
         tilt_floor_rad: smallest tilt tolerance [rad].
@@ -205,9 +206,11 @@ def predicted_positions(recording: Recording, *, ensemble: Sequence[Recording] =
         if tuple(other.joint_names) != tuple(recording.joint_names):
             raise ValueError("an ensemble replay has other joints than the nominal one")
         t_other = np.asarray(other.t, dtype=float)
-        q_other = _resample(t_other, np.asarray(other.q, dtype=float), t_rec)
-        spread = np.maximum(spread, np.max(np.abs(q_other - q_rec), axis=0))
-        tilt_spread = max(tilt_spread, float(np.max(np.abs(np.interp(t_rec, t_other, np.asarray(other.tilt_rad, dtype=float)) - tilt_rec))))
+        within = t_rec <= t_other[-1] + 1e-9  # where it replayed
+        q_other = _resample(t_other, np.asarray(other.q, dtype=float), t_rec[within])
+        spread = np.maximum(spread, np.max(np.abs(q_other - q_rec[within]), axis=0, initial=0.0))
+        tilt_other = np.interp(t_rec[within], t_other, np.asarray(other.tilt_rad, dtype=float))
+        tilt_spread = max(tilt_spread, float(np.max(np.abs(tilt_other - tilt_rec[within]), initial=0.0)))
     tolerance = floor_rad + spread + resampling
     return PredictedPositions(recording.joint_names, t, table.q_rad, tolerance, tilt, tilt_floor_rad + tilt_spread + tilt_resampling).to_dict()
 

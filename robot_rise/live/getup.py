@@ -257,11 +257,14 @@ class RisePlanner:
         candidates: library motions tried, nearest first.
         retries: rise's own in-simulation retries.
         filter_config: the dynamics filter (ensemble proof on by default).
+        composed: compose the ensemble proof with the library motions' start proofs where it
+            applies (``robot_rise.filter.composed``; precompute them: ``RiseContext.warm_start_proofs``).
     """
 
     def __init__(self, context: RiseContext, *, budget_s: float = 5.0, candidates: int = 3, retries: int = 0,
-                 filter_config: FilterConfig = FilterConfig()) -> None:
+                 filter_config: FilterConfig = FilterConfig(), composed: bool = False) -> None:
         self.context = context
+        self.composed = composed
         self.budget_s = budget_s
         self.candidates = candidates
         self.retries = retries
@@ -271,7 +274,7 @@ class RisePlanner:
         ctx = self.context
         result = rise(ctx.robot, estimate.posture, scene=ctx.scene, seed=attempt, budget_s=self.budget_s,
                       candidates=self.candidates, context=ctx, retries=self.retries,
-                      filter_config=self.filter_config)
+                      filter_config=self.filter_config, composed=self.composed)
         motion = str(result.trajectory.report.get("motion", "")) if result.trajectory is not None else ""
         return PlannedGetUp(result.trajectory if result.proven else None, result.proven, result.reason, motion)
 

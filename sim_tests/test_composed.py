@@ -1,0 +1,102 @@
+"""The composed ensemble proof (robot_rise.filter.composed): a library motion proven once from rest
+on its first targets, an approach proven online to arrive there at rest; rise(composed=True)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from robot_rise.filter import (
+    ARRIVAL_SETTLE_S,
+    COMPOSED_KEY,
+    FilterConfig,
+    Proof,
+    RestPose,
+    check,
+    expected_positions_of,
+    prove_composed,
+    settled_start,
+)
+from robot_rise.rise import RiseContext, rise
+from robot_rise.sampling import sample_lying
+from robot_rise.sim.variants import ENSEMBLE
+
+MOTION = "prone_elbow_knees_quick"
+
+
+@pytest.fixture(scope="module")
+def context(robot) -> RiseContext:
+    return RiseContext.build(robot, "flat")
+
+
+@pytest.fixture(scope="module")
+def composed_rise(robot, context):
+    # prone_1_000 of the 300 protocol: the composed proof applies there
+    start = sample_lying(robot, "prone", 1, 1).postures[0]
+    return start, rise(robot, start, seed=1, context=context, composed=True)
+
+
+def test_settled_start_holds_the_first_targets_before_the_motion(context) -> None:
+    tr = context.library.get(MOTION).trajectory
+    s = settled_start(tr)
+    assert len(s.t) == len(tr.t) + 1 and s.t[0] == 0.0
+    np.testing.assert_allclose(s.t[1:], tr.t + ARRIVAL_SETTLE_S)
+    np.testing.assert_array_equal(s.q[0], tr.q[0])
+    np.testing.assert_array_equal(s.q[1:], tr.q)
+
+
+def test_a_composed_rise_is_proven_on_every_variant_and_the_whole_replay_agrees(robot, composed_rise) -> None:
+    _, result = composed_rise
+    assert result.proven, result.reason
+    report = result.trajectory.report
+    assert COMPOSED_KEY in report and report["motion"] == MOTION and report["connecting_frame"] == 0
+    proof = Proof.from_dict(report)
+    assert [v.label for v in proof.ensemble] == [v.label for v in ENSEMBLE] and all(v.standing for v in proof.ensemble)
+    # the settle on the motion's first targets is in the trajectory, the motion after it unchanged
+    join = report["plan_rows"]
+    assert result.trajectory.t[join] - result.trajectory.t[join - 1] >= ARRIVAL_SETTLE_S - 1e-6
+    # the executor's band covers the whole get-up
+    band = expected_positions_of(report)
+    assert band is not None and band.t_s[-1] >= result.trajectory.duration_s
+    # the uncomposed proof (every variant replays the whole get-up) says the same
+    whole = check(robot, result.trajectory)
+    assert whole.proven, whole.problems
+
+
+def test_an_arrival_elsewhere_or_a_reshaped_library_part_is_not_composed(robot, context, composed_rise) -> None:
+    start, result = composed_rise
+    motion = context.library.get(MOTION)
+    start_proof = context.start_proof(motion)
+    assert start_proof is not None and start_proof.all_stand
+    tr = result.trajectory
+    join = tr.report["plan_rows"]
+    rec = result.filter_result.recording
+    nominal = Proof.from_dict(tr.report)
+    kw = dict(join_row=join, motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=FilterConfig())
+    # rest poses 1 cm higher than where the variants arrive: no variant arrives
+    higher = dataclasses.replace(start_proof, rest=tuple(RestPose(r.root_quat_wxyz, r.root_z_m + 0.01, r.joints_rad) for r in start_proof.rest))
+    found = prove_composed(nominal, rec, tr, start_proof=higher, **kw)
+    assert found is not None and not found.proof.proven
+    assert not any(a.arrived for a in found.arrivals) and "higher or lower" in found.arrivals[0].reason
+    # a library row changed: the start proof is not about this motion any more
+    q = tr.q.copy()
+    q[join + 10] += 0.01
+    assert prove_composed(nominal, rec, dataclasses.replace(tr, q=q), start_proof=start_proof, **kw) is None
+    # no settle before the motion: the body is not at rest where the start proof began
+    t = tr.t.copy()
+    t[join:] -= ARRIVAL_SETTLE_S / 2
+    assert prove_composed(nominal, rec, dataclasses.replace(tr, t=t), start_proof=start_proof, **kw) is None
+
+
+def test_when_no_candidate_composes_rise_proves_them_whole(robot, monkeypatch) -> None:
+    context = RiseContext.build(robot, "flat")
+    monkeypatch.setattr(context, "start_proof", lambda motion, config=None: None)  # as if no motion stood from rest on its first targets
+    start = sample_lying(robot, "prone", 1, 1).postures[0]
+    result = rise(robot, start, seed=1, context=context, composed=True)
+    assert result.proven, result.reason
+    assert COMPOSED_KEY not in result.trajectory.report
+    first = result.attempts[0]
+    assert not first.proven and first.filter_reason.startswith("composed: ") and first.frame == 0
+    assert any(a.proven for a in result.attempts[1:])
