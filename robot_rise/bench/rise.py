@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_rise.filter import Proof
+from robot_rise.filter import COMPOSED_KEY, Proof
 from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
 from robot_rise.rise import DEFAULT_CANDIDATE_RANK
 from robot_rise.sampling import sample_lying
@@ -97,6 +97,9 @@ class RiseCase:
     # where the robot's time went [s]: the planned approach, the library motion from the connecting
     # frame on, and the rest: the blend at the join and what the filter added by slowing
     robot_time: dict[str, float] | None = None
+    cpu_s: float = float("nan")  # CPU seconds of the rise, all threads (one core's worth of work) [s]
+    composed: bool = False  # its ensemble proof was composed (rise composed=True; robot_rise.filter.composed)
+    whole_check: bool | None = None  # a composed output replayed whole on every variant: proven too
 
 
 _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
@@ -109,7 +112,8 @@ def _rise_case(args: tuple) -> RiseCase:
     from robot_rise.model import load_robot
     from robot_rise.rise import rise
 
-    robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials, rank = args
+    robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials, rank, *more = args
+    composed = bool(more and more[0])
     key = (robot_dir, scene)
     if key not in _CONTEXTS:  # one per worker process: the robot, checker, library and tree
         from robot_rise.rise import RiseContext
@@ -117,18 +121,28 @@ def _rise_case(args: tuple) -> RiseCase:
         _CONTEXTS[key] = RiseContext.build(load_robot(robot_dir), scene)
     context = _CONTEXTS[key]
     robot = context.robot
+    if composed:
+        context.warm_start_proofs()  # per robot, before the clock starts (the guard does it at start-up)
     t0 = _time.perf_counter()
+    c0 = _time.process_time()
     try:
-        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context, candidate_rank=rank)
+        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context, candidate_rank=rank, composed=composed)
     except Exception as e:  # a benchmark reports failures, it does not stop on them
         return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
     wall = _time.perf_counter() - t0
+    cpu = _time.process_time() - c0
     rep = result.trajectory.report if result.trajectory is not None else {}
     proof = Proof.from_dict(rep) if result.trajectory is not None else None
     robust: dict[str, bool] = {}
     if result.proven and robustness and result.trajectory is not None:
         for variant in BENCH_MODEL_VARIANTS:
             robust[variant.label] = stands_under(robot, result.trajectory, variant, scene=scene)
+    was_composed = result.trajectory is not None and COMPOSED_KEY in result.trajectory.report
+    whole = None
+    if was_composed and result.proven:
+        from robot_rise.filter import check
+
+        whole = check(robot, result.trajectory).proven  # the uncomposed proof of the same output
     margins = None
     if result.proven and result.trajectory is not None and (variants or noise_trials):
         from robot_rise.bench.margins import margins_of
@@ -142,6 +156,7 @@ def _rise_case(args: tuple) -> RiseCase:
         _seconds(result, rep),
         proof.stood_from_s if proof and proof.stood_from_s is not None else float("nan"),
         _robot_time(context.library, rep, proof.duration_s) if proof and result.proven else None,
+        cpu, was_composed, whole,
     )
 
 
@@ -178,8 +193,12 @@ def bench_rise(
     noise_trials: int = 0,
     progress=None,
     candidate_rank: str = DEFAULT_CANDIDATE_RANK,
+    composed: bool = False,
 ) -> list[RiseCase]:
     """Rise from ``n_per_kind`` supine, prone and lateral (half left, half right) postures.
+
+    ``composed``: as the guard proves (``rise(composed=True)``, start proofs precomputed per
+    worker before the clock starts); each composed output is also checked whole.
 
     Postures come from ``sample_lying`` with seeds ``seed`` (supine, prone) and ``seed``
     (left, right), as the paper's protocol (000 section 5): 20 supine, 20 prone, 20 lateral.
@@ -194,7 +213,8 @@ def bench_rise(
             continue
         sample = sample_lying(robot, kind, n, seed, scene=scene)  # type: ignore[arg-type]
         for i, p in enumerate(sample.postures):
-            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness, variants, noise_trials, candidate_rank))
+            tasks.append((str(robot.directory), f"{kind}_{seed}_{i:03d}", kind, p, scene, budget_s, seed, robustness, variants, noise_trials,
+                          candidate_rank, composed))
     results: list[RiseCase] = []
     if jobs <= 1:
         for k, task in enumerate(tasks):
@@ -224,11 +244,14 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
         ok = [c for c in cs if c.proven]
         dur = np.array([c.duration_s for c in ok]) if ok else np.array([np.nan])
         peak = np.array([c.peak_torque_ratio for c in ok]) if ok else np.array([np.nan])
+        cpu = np.array([c.cpu_s for c in cs])
         row = {
             "n": len(cs),
             "success": len(ok) / len(cs),
             "wall_median_s": float(np.median(wall)),
             "wall_p95_s": float(np.percentile(wall, 95)),
+            "cpu_median_s": float(np.nanmedian(cpu)) if np.any(np.isfinite(cpu)) else float("nan"),
+            "cpu_p95_s": float(np.nanpercentile(cpu, 95)) if np.any(np.isfinite(cpu)) else float("nan"),
             "duration_median_s": float(np.median(dur)),
             "duration_p90_s": float(np.percentile(dur, 90)),
             "stood_from_median_s": float(np.nanmedian([c.stood_from_s for c in ok])) if ok else float("nan"),
@@ -252,6 +275,11 @@ def summarize_rise(cases: list[RiseCase]) -> dict[str, dict[str, float]]:
             row["variant_share_median"] = float(np.median(shares))
             row["variant_share_min"] = float(shares.min())
             row["variant_share_95_or_more"] = float(np.mean(shares >= 0.95))
+        composed = [c for c in ok if c.composed]
+        if any(c.whole_check is not None for c in cs):
+            row["composed"] = len(composed) / len(cs)
+            row["whole_check_agrees"] = sum(bool(c.whole_check) for c in composed)
+            row["composed_checked"] = len(composed)
         noisy = [c for c in ok if c.noise_trials]
         if noisy:
             row["noise_flips"] = int(sum(c.noise_flips for c in noisy))

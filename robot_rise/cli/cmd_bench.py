@@ -61,6 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="re-prove each proven output K times with 1e-6 rad noise on its targets; count verdict flips")
     r.add_argument("--rank", choices=("duration", "distance"), default="duration",
                    help="which library motion rise tries first: the quickest expected get-up (default) or the nearest")
+    r.add_argument("--composed", action="store_true",
+                   help="prove as the guard does: compose each ensemble proof with the library motions' start proofs "
+                        "(precomputed per worker) where it applies; each composed output is also checked whole")
     r.add_argument("--json", action="store_true")
     add_robot_args(r, scene=False)
     r.set_defaults(func=run_rise)
@@ -130,7 +133,7 @@ def run_rise(args: argparse.Namespace) -> int:
     total = 3 * args.n_per_kind
     cases = bench_rise(robot, n_per_kind=args.n_per_kind, seed=args.seed, scene=args.scene, budget_s=args.budget, candidate_rank=args.rank,
                        jobs=args.jobs, robustness=not args.no_robustness, variants=args.variants,
-                       noise_trials=args.noise_trials, progress=Progress("rising", total))
+                       noise_trials=args.noise_trials, progress=Progress("rising", total), composed=args.composed)
     summary = summarize_rise(cases)
     if args.json:
         print_json({"summary": summary, "cases": [c.__dict__ for c in cases]})
@@ -148,6 +151,9 @@ def run_rise(args: argparse.Namespace) -> int:
         if "ensemble_median_s" in row:
             print(f"{kind}: median seconds: plan {row['plan_median_s']:.2f}, filter (nominal) {row['filter_nominal_median_s']:.2f}, "
                   f"ensemble {row['ensemble_median_s']:.2f}")
+        if "composed" in row:
+            print(f"{kind}: {100 * row['composed']:.0f} % proven composed; the whole check agrees on {row['whole_check_agrees']} of "
+                  f"{row['composed_checked']}; CPU per rise median {row['cpu_median_s']:.2f} s, p95 {row['cpu_p95_s']:.2f} s")
         if "variant_share_median" in row:
             print(f"{kind}: random variants standing per trajectory: median {100 * row['variant_share_median']:.0f} %, "
                   f"min {100 * row['variant_share_min']:.0f} %; {100 * row['variant_share_95_or_more']:.0f} % of trajectories "
