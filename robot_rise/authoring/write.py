@@ -344,6 +344,10 @@ def author_library(
                 report["adaptation"] = adaptation
             as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
             tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
+            if tr.t is not as_written.t:  # conformed: slower segments, same rows; the phase ends where its row went (as reprove_library)
+                connect_until_s = round(float(np.interp(connect_until_s, as_written.t, tr.t)), 6)
+                report["connect_until_s"] = connect_until_s
+                tr = tr.with_report(connect_until_s=connect_until_s)
             if not proof.proven:
                 reasons.append(f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems))
                 continue
