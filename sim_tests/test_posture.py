@@ -82,7 +82,7 @@ def _past_limit(robot, joint: str, past_rad: float, *, upper: bool) -> Posture:
     return p.with_joints({joint: robot.joint_upper[i] + past_rad if upper else robot.joint_lower[i] - past_rad})
 
 
-_LYING = Path(__file__).parent.parent / "configs" / "motions" / "op3" / "left_tip_forward.start.json"  # l_sho_roll rests on its lower stop
+_LYING = Path(__file__).parent.parent / "configs" / "motions" / "op3" / "left_tip_elbow_knees.start.json"  # l_sho_roll rests on its lower stop
 
 
 @pytest.mark.parametrize("past_rad", [0.3e-3, 2.9e-3])

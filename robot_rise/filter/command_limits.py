@@ -57,7 +57,9 @@ SPEED_MARGIN = 0.01
 # ours: conform() keeps targets this far inside the joint limits, more than the file's rounding
 # of angles (5e-7 rad), so the executor's limit clamp never changes a rounded target
 LIMIT_MARGIN_RAD = 1e-6
-_STRETCH_MIN_S = 1e-9  # [s] shorter stretches are float noise (a conformed trajectory conforms)
+# [s] shorter stretches are float noise and the file's rounding (times and angles to 1e-6: a conformed
+# trajectory written and read back conforms; SPEED_MARGIN's 1 % covers a segment that much too fast)
+_STRETCH_MIN_S = 5e-6
 _LIMIT_MATCH_RAD = 1e-6  # [rad] joint limits closer than this are the same limits (float round trips)
 
 
