@@ -297,7 +297,7 @@ def rise(
     if composed and filter_config.ensemble:
         if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
             context = RiseContext.build(robot, scene, library)  # one for both passes
-        first = _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, say, context, library,
+        first = _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, progress, context, library,
                                  robustness, candidate_rank, composed=True)
         if first.proven:
             return first
@@ -306,8 +306,8 @@ def rise(
                      filter_config=filter_config, progress=progress, context=context, retries=retries, robustness=robustness,
                      candidate_rank=candidate_rank)
         return dataclasses.replace(whole, attempts=first.attempts + whole.attempts)
-    return _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, say, context, library,
-                            robustness, candidate_rank, composed=False, retries=retries, progress=progress)
+    return _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, progress, context, library,
+                            robustness, candidate_rank, composed=False, retries=retries)
 
 
 def _rise_candidates(
@@ -319,7 +319,7 @@ def _rise_candidates(
     budget_s: float,
     candidates: int,
     filter_config: FilterConfig,
-    say: Callable[[str], None],
+    progress: Callable[[str], None] | None,
     context: RiseContext | None,
     library: MotionLibrary | None,
     robustness: tuple[ModelVariant, ...],
@@ -327,9 +327,9 @@ def _rise_candidates(
     *,
     composed: bool,
     retries: int = 0,
-    progress: Callable[[str], None] | None = None,
 ) -> RiseResult:
     """:func:`rise`'s candidates, each proven composed (``composed``) or whole."""
+    say = progress or (lambda s: None)
     if filter_config.max_stretch is None:
         filter_config = dataclasses.replace(filter_config, max_stretch=MAX_STRETCH)
     start = admit_posture(start, robot, where="start posture")
