@@ -51,6 +51,7 @@ from robot_rise.placement import MotionRoom, motion_room
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.timing import TimingLimits, time_parameterize
+from robot_rise.planning.smoothing import QUICK_SMOOTHING, SmoothingConfig
 from robot_rise.planning.to_trajectory import plan_trajectory, timed_to_trajectory
 from robot_rise.posture import Posture, admit_posture
 from robot_rise.trajectory import Trajectory
@@ -288,7 +289,8 @@ def rise(
             motion's start, the variants replay only that, the motion's own proof does the rest):
             the live get-up's first command sooner, for ``ARRIVAL_SETTLE_S`` more robot time.
             Every candidate is tried composed first (cheap: the nominal replay and the variants'
-            arrivals); when none is proven so, the candidates are proven whole, as without it.
+            arrivals; its approach smoothed once, ``QUICK_SMOOTHING``, not three curves compared
+            by their jerk); when none is proven so, the candidates are proven whole, as without it.
 
     Raises:
         PostureError: the start (or key) posture does not fit the robot or is not valid in the scene.
@@ -298,7 +300,7 @@ def rise(
         if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
             context = RiseContext.build(robot, scene, library)  # one for both passes
         first = _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, progress, context, library,
-                                 robustness, candidate_rank, composed=True)
+                                 robustness, candidate_rank, composed=True, smoothing=QUICK_SMOOTHING)
         if first.proven:
             return first
         say("no candidate proven composed: proving them whole")
@@ -327,6 +329,7 @@ def _rise_candidates(
     *,
     composed: bool,
     retries: int = 0,
+    smoothing: SmoothingConfig = SmoothingConfig(),
 ) -> RiseResult:
     """:func:`rise`'s candidates, each proven composed (``composed``) or whole."""
     say = progress or (lambda s: None)
@@ -363,7 +366,7 @@ def _rise_candidates(
                 log.info("candidate %s@%d: %s", conn.motion, conn.frame, room.describe())
                 continue
             problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
-            planned = plan_trajectory(problem)
+            planned = plan_trajectory(problem, smoothing=smoothing)
         except RobotRiseError as e:  # one bad candidate must not end the rise
             attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, f"error: {e}"))
             log.warning("candidate %s@%d failed: %s", conn.motion, conn.frame, e)

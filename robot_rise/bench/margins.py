@@ -37,6 +37,8 @@ class Margins:
         noise_trials: noisy replays of the proof standard.
         noise_flips: how many gave another verdict than ``proven``.
         failures: why variants fell (one line each, at most five).
+        flip_reasons: for each flip, what the verdict that differed from ``proven`` rests on (the
+            noisy replay's problems, or the noiseless one's when noise made it pass).
     """
 
     proven: bool
@@ -45,6 +47,7 @@ class Margins:
     noise_trials: int
     noise_flips: int
     failures: tuple[str, ...]
+    flip_reasons: tuple[str, ...] = ()
 
     @property
     def variant_share(self) -> float:
@@ -63,13 +66,19 @@ def margins_of(
     config: FilterConfig = FilterConfig(),
 ) -> Margins:
     """Random-variant share and noise flips of ``trajectory`` (see the module docstring)."""
-    proven = check(robot, trajectory, scene=scene, config=config).proven
+    nominal = check(robot, trajectory, scene=scene, config=config)
+    proven = nominal.proven
     randoms = replay_random_variants(robot, trajectory, variants, seed, scene=scene, config=config) if variants else None
     flips = 0
+    reasons: list[str] = []
     rng = np.random.default_rng(seed)
     for _ in range(noise_trials):
         noisy = dataclasses.replace(trajectory, q=trajectory.q + rng.uniform(-noise_rad, noise_rad, trajectory.q.shape))
-        flips += int(check(robot, noisy, scene=scene, config=config).proven != proven)
+        replay = check(robot, noisy, scene=scene, config=config)
+        if replay.proven != proven:
+            flips += 1
+            failed = nominal if replay.proven else replay
+            reasons.append("; ".join(failed.problems[:3]) or "not proven")
     return Margins(
         proven,
         variants,
@@ -77,4 +86,5 @@ def margins_of(
         noise_trials,
         flips,
         tuple(randoms.failures()[:5]) if randoms else (),
+        tuple(reasons),
     )

@@ -100,6 +100,7 @@ class RiseCase:
     cpu_s: float = float("nan")  # CPU seconds of the rise, all threads (one core's worth of work) [s]
     composed: bool = False  # its ensemble proof was composed (rise composed=True; robot_rise.filter.composed)
     whole_check: bool | None = None  # a composed output replayed whole on every variant: proven too
+    flip_reasons: tuple[str, ...] = ()  # why each noise flip's failing replay failed (bench.margins)
 
 
 _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext (benchmark workers)
@@ -156,7 +157,7 @@ def _rise_case(args: tuple) -> RiseCase:
         _seconds(result, rep),
         proof.stood_from_s if proof and proof.stood_from_s is not None else float("nan"),
         _robot_time(context.library, rep, proof.duration_s) if proof and result.proven else None,
-        cpu, was_composed, whole,
+        cpu, was_composed, whole, margins.flip_reasons if margins else (),
     )
 
 

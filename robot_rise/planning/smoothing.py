@@ -54,7 +54,7 @@ from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.timing import integrated_squared_jerk, time_parameterize
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["SmoothingConfig", "SmoothingReport", "smooth_path", "smooth_path_report", "shortcut", "shortcut_indices", "bspline_samples", "tripling_only"]
+__all__ = ["QUICK_SMOOTHING", "SmoothingConfig", "SmoothingReport", "smooth_path", "smooth_path_report", "shortcut", "shortcut_indices", "bspline_samples", "tripling_only"]
 
 log = logging.getLogger(__name__)
 
@@ -75,6 +75,8 @@ class SmoothingConfig:
             max_rounds=8: the smoother before issue 7's fix, kept for the ablation and the tests).
         restore_max_detour: largest relative lengthening of an edge by a put-back waypoint.
         try_without_shortcut: candidate d of smooth_path (the planner's waypoints, not shortcut).
+        compare_hard_corners: with ``restore_waypoints``, also smooth with hard corners alone and
+            keep the smoother-timed curve (see smooth_path).
     """
 
     shortcut_attempts: int = 150
@@ -99,6 +101,13 @@ class SmoothingConfig:
     # stage) loses more to it than repair a gives back (issue 7: lying60 median dimensionless jerk
     # 8.3e5 through the shortcut, 2.3e4 without).
     try_without_shortcut: bool = True
+    compare_hard_corners: bool = True
+
+
+QUICK_SMOOTHING = SmoothingConfig(try_without_shortcut=False, compare_hard_corners=False)
+"""One curve (shortcut, then repairs a and b), no alternatives compared by their jerk: about a
+third of the default's work (two thirds of a live get-up's planning time went to smoothing three
+curves: profile of 2026-12-03), for what a robot lying on the floor waits on (``rise(composed=True)``)."""
 
 
 @dataclass(frozen=True)
@@ -233,7 +242,7 @@ def smooth_path(
     states = _states(seq)
     out, n_restored = _smooth_through(seq, states, checker, space, config, seed, through)
     timed_out: tuple[float, float] | None = None  # (J x D^5, D) of ``out``, computed once when needed
-    if config.restore_waypoints and n_restored:
+    if config.restore_waypoints and config.compare_hard_corners and n_restored:
         alt = _smooth_through(seq, states, checker, space, tripling_only(config), seed, through)[0]
         timed_out, timed_alt = _timed(out, checker), _timed(alt, checker)
         if timed_alt[0] < timed_out[0]:
