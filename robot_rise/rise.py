@@ -366,7 +366,7 @@ def _rise_candidates(
                 log.info("candidate %s@%d: %s", conn.motion, conn.frame, room.describe())
                 continue
             problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
-            planned = plan_trajectory(problem, smoothing=smoothing)
+            planned = plan_trajectory(problem, smoothing=smoothing, report_clearance=not composed)  # composed: the live get-up's latency
         except RobotRiseError as e:  # one bad candidate must not end the rise
             attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, f"error: {e}"))
             log.warning("candidate %s@%d failed: %s", conn.motion, conn.frame, e)

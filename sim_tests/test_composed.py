@@ -11,6 +11,7 @@ import pytest
 from robot_rise.filter import (
     ARRIVAL_SETTLE_S,
     COMPOSED_KEY,
+    MAX_WHOLE_REPLAYS,
     FilterConfig,
     Proof,
     RestPose,
@@ -88,6 +89,25 @@ def test_an_arrival_elsewhere_or_a_reshaped_library_part_is_not_composed(robot, 
     t = tr.t.copy()
     t[join:] -= ARRIVAL_SETTLE_S / 2
     assert prove_composed(nominal, rec, dataclasses.replace(tr, t=t), start_proof=start_proof, **kw) is None
+
+
+def test_a_few_variants_that_arrive_elsewhere_are_replayed_whole(robot, context, composed_rise) -> None:
+    start, result = composed_rise
+    motion = context.library.get(MOTION)
+    start_proof = context.start_proof(motion)
+    tr = result.trajectory
+    rec = result.filter_result.recording
+    nominal = Proof.from_dict(tr.report)
+    kw = dict(join_row=tr.report["plan_rows"], motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=FilterConfig())
+    off = (2, 7)[:MAX_WHOLE_REPLAYS]  # their rest poses 1 cm higher: they arrive elsewhere
+    rest = tuple(RestPose(r.root_quat_wxyz, r.root_z_m + 0.01, r.joints_rad) if k in off else r for k, r in enumerate(start_proof.rest))
+    found = prove_composed(nominal, rec, tr, start_proof=dataclasses.replace(start_proof, rest=rest), **kw)
+    assert found is not None and [k for k, a in enumerate(found.arrivals) if not a.arrived] == list(off)
+    assert found.proof.proven, found.proof.problems  # the whole replays stand, as check's do
+    assert found.report[COMPOSED_KEY]["replayed_whole"] == [ENSEMBLE[k].label for k in off]
+    whole = check(robot, tr)
+    for k in off:  # each such verdict is the whole replay's own
+        assert found.proof.ensemble[k].final_tilt_deg == pytest.approx(whole.ensemble[k].final_tilt_deg)
 
 
 def test_when_no_candidate_composes_rise_proves_them_whole(robot, monkeypatch) -> None:

@@ -33,6 +33,7 @@ from robot_rise.filter.command_limits import (
 from robot_rise.filter.composed import (
     ARRIVAL_SETTLE_S,
     COMPOSED_KEY,
+    MAX_WHOLE_REPLAYS,
     TAIL_MAX_STRETCH,
     Arrival,
     ComposedProof,
@@ -110,6 +111,7 @@ __all__ = [
     "Arrival",
     "ARRIVAL_SETTLE_S",
     "TAIL_MAX_STRETCH",
+    "MAX_WHOLE_REPLAYS",
     "COMPOSED_KEY",
     "gravity_angle_rad",
     "execution_permit",

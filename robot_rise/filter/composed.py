@@ -17,7 +17,9 @@ Online, for a get-up that joins the motion at its start (``prove_composed``):
   ``ARRIVAL_*``). On flat ground a lying body at rest holding the same targets is in the same
   state wherever it lies and whichever way it faces, so from there the start proof's verdict on
   that variant holds;
-- a variant stands if it arrives and the start proof says it stands.
+- a variant stands if it arrives and the start proof says it stands; a variant that does not
+  arrive (slower to come to rest, a joint left further off: a weak P gain does both) is replayed
+  whole, as the uncomposed proof would, and stands if that replay does.
 
 What it is not: "the same state" is within our tolerances (gear friction leaves a loaded joint a
 few degrees from where another approach would), not a theorem. ``robot-rise check`` replays the
@@ -47,6 +49,7 @@ from robot_rise.trajectory import Trajectory
 
 __all__ = [
     "ARRIVAL_SETTLE_S",
+    "MAX_WHOLE_REPLAYS",
     "TAIL_MAX_STRETCH",
     "COMPOSED_KEY",
     "Arrival",
@@ -75,6 +78,10 @@ ARRIVAL_REST_ROOT_SPEED_M_S = 0.01  # root slower than this
 TAIL_TIME_TOLERANCE_S = 1e-4
 TAIL_TARGET_TOLERANCE_RAD = 1e-5
 TAIL_MAX_STRETCH = 1.0 + 1e-4  # FilterConfig.motion_max_stretch of the nominal filter: the library part not slowed
+# Variants that arrive elsewhere are replayed whole, up to this many (ours: one or two whole
+# replays, ~0.15 s each, instead of the next candidate's plan and proof; more than that and the
+# approach is not the one the start proof had in mind)
+MAX_WHOLE_REPLAYS = 3
 
 
 @dataclass(frozen=True)
@@ -250,8 +257,17 @@ def prove_composed(
                                   root=None if trajectory.root is None else trajectory.root[:join_row + 1])
     _, recs = replayer.replay(arrival, start=start, config=dataclasses.replace(config, hold_s=0.0))
     arrivals = tuple(_arrival(label, rec, rest, config) for label, rec, rest in zip(labels, recs, start_proof.rest))
+    elsewhere = [k for k, a in enumerate(arrivals) if not a.arrived]
+    whole: dict[int, VariantVerdict] = {}
+    if elsewhere and len(elsewhere) <= MAX_WHOLE_REPLAYS:  # those few replayed whole: their own proof, not the start proof's
+        result, _ = replayer.replay(trajectory, start=start, config=config, only=elsewhere)
+        whole = dict(zip(elsewhere, result.verdicts))
     verdicts = []
-    for a, v in zip(arrivals, start_proof.verdicts):
+    for k, (a, v) in enumerate(zip(arrivals, start_proof.verdicts)):
+        if k in whole:
+            w = whole[k]
+            verdicts.append(dataclasses.replace(w, reason=w.reason and f"replayed whole (arrival: {a.reason}): {w.reason}"))
+            continue
         reason = f"arrival: {a.reason}" if not a.arrived else v.reason
         verdicts.append(VariantVerdict(v.label, a.arrived and v.standing, "" if a.arrived and v.standing else reason,
                                        v.final_tilt_deg, v.final_height_fraction, max(a.peak_torque_ratio, v.peak_torque_ratio),
@@ -263,7 +279,7 @@ def prove_composed(
         **proof.to_dict(),
         PREDICTED_KEY: _predicted(nominal_recording, recs, start_proof),
         COMPOSED_KEY: {"arrival_until_s": round(float(trajectory.t[join_row]), 4), "settle_s": ARRIVAL_SETTLE_S,
-                       "start_proof": start_proof.motion},
+                       "start_proof": start_proof.motion, "replayed_whole": [labels[k] for k in sorted(whole)]},
     }
     return ComposedProof(proof, arrivals, report)
 

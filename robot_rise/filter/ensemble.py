@@ -112,22 +112,24 @@ class EnsembleReplayer:
         return self.variants + extra, self.players + self._combined[:combined]
 
     def replay(self, trajectory: Trajectory, *, start: Posture | None = None,
-               config: FilterConfig = FilterConfig()) -> tuple[EnsembleResult, list[Recording]]:
-        """Replay ``trajectory`` (from ``start``, default its own) on every variant; judge each."""
+               config: FilterConfig = FilterConfig(), only: Sequence[int] | None = None) -> tuple[EnsembleResult, list[Recording]]:
+        """Replay ``trajectory`` (from ``start``, default its own) on every variant (or on the
+        variants numbered ``only``, in that order); judge each."""
         start = start or trajectory.start
         variants, players = self._variants_and_players(config.combined_variants)
+        ks = list(range(len(variants))) if only is None else [int(k) for k in only]
 
         def one(k: int) -> Recording:
             v = variants[k]
             return players[k].play(variant_trajectory(trajectory, v), variant_start(start, self.robot, v), hold_s=config.hold_s)
 
-        threads = min(self.threads, len(variants))
-        if threads == 1:
-            recs = [one(k) for k in range(len(variants))]
+        threads = min(self.threads, len(ks))
+        if threads <= 1:
+            recs = [one(k) for k in ks]
         else:
             with ThreadPoolExecutor(threads) as pool:
-                recs = list(pool.map(one, range(len(variants))))
-        return EnsembleResult(tuple(_verdict(v, r, config) for v, r in zip(variants, recs))), recs
+                recs = list(pool.map(one, ks))
+        return EnsembleResult(tuple(_verdict(variants[k], r, config) for k, r in zip(ks, recs))), recs
 
 
 def proven_combined_variants(trajectory: Trajectory) -> int:
