@@ -300,7 +300,7 @@ def rise(
         if context is None or context.robot is not robot or context.scene != scene or (library is not None and context.library is not library):
             context = RiseContext.build(robot, scene, library)  # one for both passes
         first = _rise_candidates(robot, start, scene, key, seed, budget_s, candidates, filter_config, progress, context, library,
-                                 robustness, candidate_rank, composed=True, smoothing=QUICK_SMOOTHING)
+                                 robustness, candidate_rank, composed=True)
         if first.proven:
             return first
         say("no candidate proven composed: proving them whole")
@@ -329,7 +329,6 @@ def _rise_candidates(
     *,
     composed: bool,
     retries: int = 0,
-    smoothing: SmoothingConfig = SmoothingConfig(),
 ) -> RiseResult:
     """:func:`rise`'s candidates, each proven composed (``composed``) or whole."""
     say = progress or (lambda s: None)
@@ -366,7 +365,8 @@ def _rise_candidates(
                 log.info("candidate %s@%d: %s", conn.motion, conn.frame, room.describe())
                 continue
             problem = PlanningProblem(start=start, goal=goal, checker=checker, key=key, budget_s=budget_s, seed=seed)
-            planned = plan_trajectory(problem, smoothing=smoothing, report_clearance=not composed)  # composed: the live get-up's latency
+            # composed: the live get-up's latency (one curve, no clearance report)
+            planned = plan_trajectory(problem, smoothing=QUICK_SMOOTHING if composed else SmoothingConfig(), report_clearance=not composed)
         except RobotRiseError as e:  # one bad candidate must not end the rise
             attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, f"error: {e}"))
             log.warning("candidate %s@%d failed: %s", conn.motion, conn.frame, e)
