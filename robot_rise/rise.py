@@ -477,7 +477,7 @@ def _composed_candidate(
     join_row = len(plan.t)
     t0 = time.perf_counter()
     nominal = dynamics_filter(robot, commanded, scene=scene, config=dataclasses.replace(config, ensemble=False, motion_max_stretch=TAIL_MAX_STRETCH),
-                              start=start, join_row=join_row)
+                              start=start, join_row=join_row, stop_at_join=True)
     if not nominal.proven:
         return None, f"the nominal filter, the library part unchanged: {nominal.reason}"
     t1 = time.perf_counter()

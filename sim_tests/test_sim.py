@@ -56,6 +56,24 @@ def test_servo_torques_never_exceed_the_envelope_even_for_a_goal_jump(robot) -> 
     assert np.all(np.abs(rec.torque_nm) <= 4.1 * (1 + np.abs(rec.qd) / 4.82) + 1e-6)
 
 
+def test_a_play_over_the_torque_margin_stops_where_asked_and_one_within_it_plays_on(robot) -> None:  # type: ignore[no-untyped-def]
+    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
+    q = start.joint_vector(robot.joint_names)
+    jump = q.copy()
+    jump[robot.joint_index("l_sho_pitch")] -= 1.5
+    tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.002, 0.6]), np.stack([q, jump, jump]), start)
+    player = Player(robot)
+    whole = player.play(tr, hold_s=0.3)
+    stopped = player.play(tr, hold_s=0.3, stop_over=(0.305, 0.9))  # saturated at the jump: over 0.9 by then
+    assert whole.stopped_s is None and stopped.stopped_s == pytest.approx(0.3)
+    k = len(stopped.t)
+    assert k == 30 and stopped.t[-1] == pytest.approx(0.3)
+    for name in ("q", "qd", "goal", "envelope_ratio", "root_pose", "self_penetration_m", "ground_contact"):
+        np.testing.assert_array_equal(getattr(stopped, name), getattr(whole, name)[:k], err_msg=name)
+    assert player.play(tr, hold_s=0.3, stop_over=(0.305, 1.0 + 1e-6)).stopped_s is None  # never beyond the envelope: plays on
+    assert len(player.play(tr, hold_s=0.3, stop_over=(0.305, 1.0 + 1e-6)).t) == len(whole.t)
+
+
 def test_a_trajectory_for_other_joints_is_rejected(robot) -> None:  # type: ignore[no-untyped-def]
     start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     tr = Trajectory(robot.name, ("head_pan",), np.array([0.0]), np.zeros((1, 1)), start)

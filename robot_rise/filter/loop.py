@@ -111,6 +111,7 @@ def dynamics_filter(
     ensemble: EnsembleReplayer | None = None,
     join_row: int | None = None,
     command_limits: CommandLimits | None = None,
+    stop_at_join: bool = False,
 ) -> FilterResult:
     """Reshape ``commanded`` until it stands the robot up within the servo limits on the nominal
     model and on every model variant, or say why not.
@@ -129,6 +130,10 @@ def dynamics_filter(
         ensemble: the variants' players to reuse (default: built here when ``config.ensemble``).
         command_limits: what the executor will enforce (default: ``command_limits_for(robot)``):
             the targets are kept within them, so executing the proven trajectory clamps nothing.
+        stop_at_join: a nominal replay already over the torque margin when it reaches
+            ``join_row`` stops there (its approach's violations reshape the next iteration). For
+            a library part that may not be slowed (``motion_max_stretch`` ~1: the composed proof),
+            where playing it on cannot make that replay proven.
 
     Returns:
         FilterResult whose trajectory holds the final commanded targets and the proof report
@@ -140,7 +145,7 @@ def dynamics_filter(
         ensemble = EnsembleReplayer(robot, scene)
     limits = command_limits or command_limits_for(robot)
     result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
-                             progress=progress, limits=limits, join_row=join_row)
+                             progress=progress, limits=limits, join_row=join_row, stop_at_join=stop_at_join)
     rounds = 0
     recs: list[Recording] = []
     ensemble_s = 0.0
@@ -192,6 +197,7 @@ def _nominal_filter(
     progress: Callable[[int, int], None] | None,
     limits: CommandLimits,
     join_row: int | None = None,
+    stop_at_join: bool = False,
 ) -> FilterResult:
     """The filter on the nominal model: reshape until proven there (the loop of the module docstring),
     the targets always within the executor's ``limits``."""
@@ -214,8 +220,10 @@ def _nominal_filter(
     while it < config.max_iterations + lean_used:
         it += 1
         current = conform(current, limits)
-        rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config, player=player, start=start, saturation_rad=saturation)
-        if slope_pending and not proof.proven:
+        stop_at_s = float(current.t[join_row]) if stop_at_join and join_row is not None and 0 < join_row < len(current.t) else None
+        rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config, player=player, start=start,
+                                                           saturation_rad=saturation, stop_at_s=stop_at_s)
+        if slope_pending and not proof.proven and rec.stopped_s is None:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
             slope_pending = False
             turned = turn_stance_to_slope(robot, current, rec, player.model, tilt)

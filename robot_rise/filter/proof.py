@@ -392,12 +392,15 @@ def prove_with_violations(
     start: Posture | None,
     saturation_rad: float,
     want_violations: bool = True,
+    stop_at_s: float | None = None,
 ) -> tuple[Recording, StandVerdict, Proof, list[Violation]]:
     """:func:`prove`, also returning the recording's violations (:func:`find_violations`, all of
-    them; found only for a fall's diagnosis unless ``want_violations``: the filter reshapes them)."""
-    rec = player.play(trajectory, start, hold_s=config.hold_s)
-    verdict = judge(rec)
+    them; found only for a fall's diagnosis unless ``want_violations``: the filter reshapes them).
+    With ``stop_at_s`` the replay stops there if the torque margin was exceeded by then (not
+    proven; the violations are those until then)."""
     limit = 1.0 - config.envelope_margin
+    rec = player.play(trajectory, start, hold_s=config.hold_s, stop_over=None if stop_at_s is None else (stop_at_s, limit + 1e-9))
+    verdict = judge(rec)
     peak_per_joint = rec.envelope_ratio.max(axis=0)
     on = supported_on_feet(rec) & np.isfinite(rec.zmp_margin_m)
     ground_geoms = [rec.robot_geom_names[g] for g in np.flatnonzero(rec.ground_contact.any(axis=0))]
@@ -405,12 +408,14 @@ def prove_with_violations(
     # Touching is not colliding: a limb resting on another (as a lying robot's often does from
     # the start) interpenetrates less than the validity checker's contact tolerance.
     self_collision = bool(np.max(rec.self_penetration_m, initial=0.0) > config.self_penetration_tolerance_m)
-    proven = bool(verdict.standing and within and not self_collision)
+    proven = bool(verdict.standing and within and not self_collision and rec.stopped_s is None)
     problems = []
     diagnosis = ""
     violations = (find_violations(rec, config, saturation_rad=saturation_rad)
                   if want_violations or not verdict.standing else [])
-    if not verdict.standing:
+    if rec.stopped_s is not None:
+        problems.append(f"replay stopped at {rec.stopped_s:.2f} s, over the torque margin by then")
+    elif not verdict.standing:
         diagnosis = describe_fall(rec, trajectory, violations)
         problems.append(f"not standing: {verdict.reason} ({diagnosis})")
     if not within:

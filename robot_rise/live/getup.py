@@ -335,8 +335,10 @@ class GetUpConfig:
         confirm_timeout_s: [s] no standing by then after the trajectory ended: not standing.
         hold_before_s: [s] before a try the servos hold the lying posture (a limp limb drifts
             under gravity while the get-up is thought out: the OP3 twin's head moved 0.2 rad in
-            3 s, twice the executor's start tolerance); the joints are read this long after
-            torque came on, once the held limbs have sagged onto their loads.
+            3 s, twice the executor's start tolerance) at least this long before the first
+            command, while the get-up is thought out. The joints are read as torque comes on,
+            before the held limbs sag onto their loads: the proof's replay starts from rest at
+            those angles with the servos holding them, and sags the same way.
         imu_lost_after: invalid IMU samples in a row after which the loop stops (limp).
         health: when not to try.
         fall: the fall detector's thresholds.
@@ -641,7 +643,7 @@ def get_up(io: RobotIO, planner: GetUpPlanner, estimator: PostureEstimator, *,
             held = io.hold()
             if held:
                 log.warning("get-up attempt %d: cannot hold the lying posture (%s); reading it limp", k, held)
-            tracker = _read_for(io, tracker, config, config.hold_before_s)
+            held_s = io.now_s()
             c0 = cpu_clock()
             joints = io.read_joints()
             true_posture = truth.true_posture() if truth is not None else None
@@ -665,6 +667,7 @@ def get_up(io: RobotIO, planner: GetUpPlanner, estimator: PostureEstimator, *,
                 attempts.append(replace(report, ended_s=io.now_s(), why=f"no proven get-up: {planned.reason}"))
                 log.info("get-up attempt %d: no proven get-up: %s", k, planned.reason)
                 continue  # the next try plans again (another seed) from where it lies
+            tracker = _read_for(io, tracker, config, config.hold_before_s - (io.now_s() - held_s))  # the thinking held it too
             run = io.execute(planned.trajectory)
             report = replace(report, first_command_s=run.first_command_s, executed=run.completed)
             if run.interrupted:

@@ -82,6 +82,8 @@ class Recording:
         trajectory_end_s: when the trajectory's last row is reached [s].
         wall_time_s: wall-clock time the play took [s].
         peak_envelope_ratio_per_step: max over every physics step and joint of the ratio.
+        stopped_s: when the play was stopped short (``Player.play``'s ``stop_over``) [s]; None:
+            played to the end of the hold.
     """
 
     joint_names: tuple[str, ...]
@@ -112,6 +114,7 @@ class Recording:
     self_contact_pairs: tuple[tuple[str, str], ...] = field(default_factory=tuple)
     obstacle_touch: np.ndarray | None = None
     obstacle_contact_pairs: tuple[tuple[str, str, float], ...] = ()
+    stopped_s: float | None = None
 
     @property
     def peak_envelope_ratio(self) -> float:
@@ -242,6 +245,7 @@ class Player:
         *,
         hold_s: float = DEFAULT_HOLD_S,
         record_hz: float = DEFAULT_RECORD_HZ,
+        stop_over: tuple[float, float] | None = None,
     ) -> Recording:
         """Play ``trajectory`` from ``start`` (default: the trajectory's own start posture).
 
@@ -250,6 +254,9 @@ class Player:
             start: posture at t = 0 (at rest).
             hold_s: time the last goal is held after the trajectory ends [s].
             record_hz: recording rate [Hz] (at most the physics rate).
+            stop_over: (time [s], envelope ratio): stop the play at that time if a physics step
+                before it exceeded that torque / envelope ratio (a replay already over the margin
+                need not be played on); the recording then ends there (``Recording.stopped_s``).
 
         Returns:
             The :class:`Recording`.
@@ -323,12 +330,21 @@ class Player:
         mj_step = mujoco.mj_step
         next_sample = stride
         k = 0
+        idx = self.index
+        # on a sample's step (so the recording ends on a sample), at or before the time asked
+        stop_step = -1 if stop_over is None else min(n_steps - 1, max(stride, int(round(stop_over[0] / dt)) // stride * stride) - 1)
+        stopped_s: float | None = None
         t0 = time.perf_counter()
         for s, row in enumerate(ctrl_seq):
             ctrl[:] = row
             mj_step(m, d)
             qvel_steps[s] = qvel
             force_steps[s] = force
+            if s == stop_step and s + 1 < n_steps and stop_over is not None:
+                qd_so_far = qvel_steps[: s + 1, idx.dof_joints]
+                over = self.servos.ratio(self.servos.motor_torque(force_steps[: s + 1, acts], qd_so_far), qd_so_far)
+                if float(np.nanmax(over, initial=0.0)) > stop_over[1]:
+                    stopped_s = float((s + 1) * dt)
             geoms = d.contact.geom
             key = geoms.tobytes()  # b"" without contacts
             kinds = cache.get(key)
@@ -368,9 +384,18 @@ class Player:
                 feet_subtree_com[nfeet] = subtree_com
                 nfeet += 1
             k += 1
+            if stopped_s is not None:
+                break
+        if stopped_s is not None:  # the recording ends at the last sample taken
+            n_steps = stop_step + 1
+            K = n_steps // stride
+            qvel_steps, force_steps, goals = qvel_steps[:n_steps], force_steps[:n_steps], goals[:n_steps]
+            self_step, pen_step, obstacle_step = self_step[:n_steps], pen_step[:n_steps], obstacle_step[:n_steps]
+            t_rec, qpos_rec, com_rec, zz_rec, site_rec = t_rec[:K], qpos_rec[:K], com_rec[:K], zz_rec[:K], site_rec[:K]
+            contact_rec, obstacle_touch_rec, on_feet_rec = contact_rec[:K], obstacle_touch_rec[:K], on_feet_rec[:K]
+            zmp_rec, margin_rec = zmp_rec[:K], margin_rec[:K]
 
         # envelope of every physics step, vectorised
-        idx = self.index
         qd_steps = qvel_steps[:, idx.dof_joints]
         tau_steps = self.servos.motor_torque(force_steps[:, acts], qd_steps)
         ratio_steps = self.servos.ratio(tau_steps, qd_steps)
@@ -415,6 +440,7 @@ class Player:
             self_contact_pairs=tuple(sorted(pairs)),
             obstacle_touch=obstacle_touch_rec,
             obstacle_contact_pairs=tuple((a, b, t) for (a, b), t in sorted(obstacle_first.items(), key=lambda kv: kv[1])),
+            stopped_s=stopped_s,
         )
 
 
