@@ -78,6 +78,7 @@ RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
 MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): a library motion slowed more is the next candidate's turn
 KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
+SAME_TARGETS_RAD = 1e-4  # [rad] a composed approach ending this close to the motion's first targets ends on them (rounding, far below one servo tick of 1.5 mrad): no 0.3 s step there
 
 
 @dataclass(frozen=True)
@@ -469,7 +470,9 @@ def _composed_candidate(
     cols = [motion.trajectory.joint_names.index(j) for j in plan.joint_names]
     first = motion.trajectory.q[0, cols]
     step = float(np.max(np.abs(plan.q[-1] - first)))
-    if step > 0.0:  # the plan ends within the limits the library's first row may graze: go there first
+    if 0.0 < step <= SAME_TARGETS_RAD:  # the plan ends there but for rounding: end it exactly there, no step
+        plan = dataclasses.replace(plan, q=np.vstack([plan.q[:-1], first]))
+    elif step > 0.0:  # the plan ends within the limits the library's first row may graze: go there first
         gap = max(config.blend_s, step / 2.0)
         root = None if plan.root is None else np.vstack([plan.root, plan.root[-1:]])
         plan = dataclasses.replace(plan, t=np.append(plan.t, plan.t[-1] + gap), q=np.vstack([plan.q, first]), root=root)
