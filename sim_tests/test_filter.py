@@ -102,3 +102,21 @@ def test_a_slow_squat_still_stands_under_every_variant_of_the_ensemble(robot):
     assert len(result.verdicts) == len(ENSEMBLE) >= 12 and result.all_stand, result.failures()
     # a robot with a third of its servo torque cannot hold a deep squat
     assert not stands_under(robot, tr, ModelVariant("weak servos", voltage_v=4.0))
+
+
+def test_a_replay_over_the_margin_by_the_join_stops_there_and_the_filter_still_slows_the_approach(robot):
+    from robot_rise.filter.proof import prove_with_violations
+    from robot_rise.filter.violations import saturation_rad
+    from robot_rise.sim.player import Player
+
+    fast = conform(_squat_trajectory(robot, 0.45), command_limits_for(robot))
+    join_s = float(fast.t[3])  # the squat is the "approach" (over the margin on the way back up), the last row the library part
+    rec, _, proof, found = prove_with_violations(robot, fast, scene="flat", config=FilterConfig(), player=Player(robot, "flat"),
+                                                 start=fast.start, saturation_rad=saturation_rad(robot), stop_at_s=join_s)
+    assert rec.stopped_s is not None and rec.t[-1] <= join_s + 1e-9
+    assert not proof.proven and proof.problems[0].startswith("replay stopped at")
+    assert found and all(v.t_start_s <= join_s for v in found)
+    result = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False), join_row=3, stop_at_join=True)
+    assert result.proven, result.reason
+    assert result.recording.stopped_s is None and result.report["filter_iterations"] >= 2
+    assert prove(robot, result.trajectory)[2].proven  # the whole replay agrees

@@ -44,24 +44,24 @@ def test_a_lying_robot_touches_the_ground_with_more_than_its_feet(robot) -> None
     assert rec.ground_contact[-1].any()
 
 
-def test_servo_torques_never_exceed_the_envelope_even_for_a_goal_jump(robot) -> None:  # type: ignore[no-untyped-def]
+def _goal_jump(robot) -> Trajectory:  # type: ignore[no-untyped-def]
+    """Lying supine, one shoulder's goal jumps 1.5 rad at once: the servo saturates."""
     start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
     q = start.joint_vector(robot.joint_names)
     jump = q.copy()
     jump[robot.joint_index("l_sho_pitch")] -= 1.5
-    tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.002, 0.6]), np.stack([q, jump, jump]), start)
-    rec = Player(robot).play(tr, hold_s=0.1)
+    return Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.002, 0.6]), np.stack([q, jump, jump]), start)
+
+
+def test_servo_torques_never_exceed_the_envelope_even_for_a_goal_jump(robot) -> None:  # type: ignore[no-untyped-def]
+    rec = Player(robot).play(_goal_jump(robot), hold_s=0.1)
     assert rec.peak_envelope_ratio == pytest.approx(1.0, abs=1e-6)  # saturated, never beyond
     assert np.all(rec.envelope_ratio <= 1.0 + 1e-9)
     assert np.all(np.abs(rec.torque_nm) <= 4.1 * (1 + np.abs(rec.qd) / 4.82) + 1e-6)
 
 
 def test_a_play_over_the_torque_margin_stops_where_asked_and_one_within_it_plays_on(robot) -> None:  # type: ignore[no-untyped-def]
-    start = settle(robot, "supine", robot.roles.joint_goals({"left.shoulder_roll": 0.25, "right.shoulder_roll": 0.25}))
-    q = start.joint_vector(robot.joint_names)
-    jump = q.copy()
-    jump[robot.joint_index("l_sho_pitch")] -= 1.5
-    tr = Trajectory(robot.name, robot.joint_names, np.array([0.0, 0.002, 0.6]), np.stack([q, jump, jump]), start)
+    tr = _goal_jump(robot)
     player = Player(robot)
     whole = player.play(tr, hold_s=0.3)
     stopped = player.play(tr, hold_s=0.3, stop_over=(0.305, 0.9))  # saturated at the jump: over 0.9 by then
