@@ -78,6 +78,7 @@ RECOVERY_MAX_ROOT_SPEED = 0.2  # [m/s, rad/s combined norm]
 OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker that sees only obstacles [m]
 MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): a library motion slowed more is the next candidate's turn
 KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
+NOT_COMPOSABLE = "not joined by a composed proof: its start proof does not stand on every variant, or its nominal torque is not proven from every arrival-spread start"
 SAME_TARGETS_RAD = 1e-4  # [rad] a composed approach ending this close to the motion's first targets ends on them (rounding, far below one servo tick of 1.5 mrad): no 0.3 s step there
 
 
@@ -95,8 +96,11 @@ class RiseAttempt:
     seconds: dict[str, float] = field(default_factory=dict)
     robust: bool = False
     blocked: str = ""  # why the motion has no room where it would go (placement.motion_room); nothing was planned
+    skipped: str = ""  # why this pass does not try the motion (rise(composed=True): not composable); nothing was planned
 
     def describe(self) -> str:
+        if self.skipped:
+            return f"{self.motion}@{self.frame}: skipped ({self.skipped})"
         if self.blocked:
             return f"{self.motion}@{self.frame}: {self.blocked}"
         if not self.planned:
@@ -356,6 +360,9 @@ def _rise_candidates(
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
         if composed and conn.frame != 0:  # a composed proof starts where the motion's own proof started
             conn = dataclasses.replace(conn, frame=0, time_s=0.0)
+        if composed and not _composable(context, library.get(conn.motion)):  # nothing to plan for: the whole pass may try it
+            attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, skipped=NOT_COMPOSABLE))
+            continue
         t0 = time.monotonic()
         say(f"planning to {conn.motion} frame {conn.frame} (distance {conn.distance:.2f})")
         try:
@@ -485,8 +492,8 @@ def _composed_candidate(
         return None, f"the nominal filter, the library part unchanged: {nominal.reason}"
     t1 = time.perf_counter()
     start_proof = context.start_proof(motion)
-    if start_proof is None or not start_proof.all_stand:
-        return None, "the motion does not stand from rest on its first targets on every variant"
+    if start_proof is None or not start_proof.composable:
+        return None, NOT_COMPOSABLE
     found = prove_composed(nominal.proof, nominal.recording, nominal.trajectory, join_row=join_row, motion_trajectory=motion.trajectory,
                            start_proof=start_proof, start=start, replayer=context.ensemble(), config=config)
     if found is None:
@@ -496,6 +503,12 @@ def _composed_candidate(
     report = {**found.report, "ensemble_seconds": time.perf_counter() - t1, "ensemble_rounds": 0, "nominal_filter_seconds": t1 - t0}
     return dataclasses.replace(nominal, trajectory=nominal.trajectory.with_report(**report), proof=found.proof,
                                report={**nominal.report, **report}), ""
+
+
+def _composable(context: RiseContext, motion: Motion) -> bool:
+    """The motion's start proof allows a composed proof (``StartProof.composable``)."""
+    start_proof = context.start_proof(motion)
+    return start_proof is not None and start_proof.composable
 
 
 def _approach_off_plan(result: FilterResult, plan_rows: int) -> bool:

@@ -110,13 +110,26 @@ def test_a_few_variants_that_arrive_elsewhere_are_replayed_whole(robot, context,
         assert found.proof.ensemble[k].final_tilt_deg == pytest.approx(whole.ensemble[k].final_tilt_deg)
 
 
-def test_when_no_candidate_composes_rise_proves_them_whole(robot, monkeypatch) -> None:
-    context = RiseContext.build(robot, "flat")
-    monkeypatch.setattr(context, "start_proof", lambda motion, config=None: None)  # as if no motion stood from rest on its first targets
+def test_a_momentum_motion_whose_torque_is_not_proven_from_every_arrival_spread_start_is_not_composable(context) -> None:
+    # the shipped sit-up peaks at 1.00 of the envelope from one spread start (test_library's xfail)
+    situp = context.start_proof(context.library.get("supine_situp_rock_robust"))
+    assert situp is not None and situp.all_stand and not situp.spread_proven and not situp.composable
+    quick = context.start_proof(context.library.get(MOTION))
+    assert quick is not None and quick.spread_proven and quick.composable
+
+
+@pytest.mark.parametrize("why", ["no start proof", "not proven from every arrival-spread start"])
+def test_when_no_candidate_composes_rise_proves_them_whole(robot, context, monkeypatch, why) -> None:
+    fresh = RiseContext.build(robot, "flat")
+    if why == "no start proof":  # as if no motion stood from rest on its first targets
+        monkeypatch.setattr(fresh, "start_proof", lambda motion, config=None: None)
+    else:
+        real = context.start_proof(context.library.get(MOTION))
+        monkeypatch.setattr(fresh, "start_proof", lambda motion, config=None: dataclasses.replace(real, spread_proven=False))
     start = sample_lying(robot, "prone", 1, 1).postures[0]
-    result = rise(robot, start, seed=1, context=context, composed=True)
+    result = rise(robot, start, seed=1, context=fresh, composed=True)
     assert result.proven, result.reason
     assert COMPOSED_KEY not in result.trajectory.report
-    first = result.attempts[0]
-    assert not first.proven and first.filter_reason.startswith("composed: ") and first.frame == 0
-    assert any(a.proven for a in result.attempts[1:])
+    skipped = [a for a in result.attempts if a.skipped]  # the composed pass planned nothing
+    assert skipped and all(not a.planned and a.frame == 0 and "composed" in a.describe() for a in skipped)
+    assert any(a.proven for a in result.attempts[len(skipped):])

@@ -234,7 +234,8 @@ def test_clamp_goal_lead_with_spread_starts_keeps_a_composed_arrival_within_the_
     """A get-up proven composed joins a motion from rest on its first targets, the joints up to
     ARRIVAL_MAX_JOINT_RAD from where the motion's own start rests: a saturating motion's first pull
     must stay within the envelope from there too (issue 16)."""
-    from robot_rise.authoring import LEAD_CLAMP_TARGET, arrival_spread_starts, clamp_goal_lead
+    from robot_rise.authoring import LEAD_CLAMP_TARGET, clamp_goal_lead
+    from robot_rise.filter import arrival_spread_starts
     from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
     from robot_rise.trajectory import Trajectory
 
@@ -273,7 +274,8 @@ def test_dynamic_motions_stay_within_the_envelope_when_joined_from_a_composed_ar
     """What the guard's composed proof needs of a shipped momentum motion (issue 16): from rest on
     its first targets, joints up to ARRIVAL_MAX_JOINT_RAD off its own start, the nominal model
     plays it within the proof's torque bound."""
-    from robot_rise.authoring import TORQUE_BOUND, arrival_spread_starts
+    from robot_rise.authoring import TORQUE_BOUND
+    from robot_rise.filter import arrival_spread_starts
     from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
 
     m = LIBRARY.get(name)

@@ -11,7 +11,7 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
   envelope (``speed_prescale``, ``subdivide``, ``retime``).
 - :mod:`~robot_rise.authoring.goal_lead` -- ``clamp_goal_lead`` for motions that keep their
   timing because they need their momentum (also from the rest states a composed get-up arrives
-  in: ``arrival_spread_starts``).
+  in: ``robot_rise.filter.arrival_spread_starts``).
 - :mod:`~robot_rise.authoring.robustness` -- the five players a motion must stand on.
 - :mod:`~robot_rise.authoring.write` -- ``motion_specs`` (strategies mapped onto a robot's joints
   by its roles), ``author_library``: settle, time, verify, prove, write;
@@ -20,7 +20,7 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
 
 from __future__ import annotations
 
-from robot_rise.authoring.goal_lead import LEAD_CLAMP_TARGET, arrival_spread_starts, clamp_goal_lead
+from robot_rise.authoring.goal_lead import LEAD_CLAMP_TARGET, clamp_goal_lead
 from robot_rise.authoring.keyframes import ROW_HZ, Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import quat_lying, settle
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
@@ -36,7 +36,6 @@ __all__ = [
     "TORQUE_BOUND",
     "Keyframe",
     "MotionSpec",
-    "arrival_spread_starts",
     "author_library",
     "motion_specs",
     "PROOF_SCENE",

@@ -4,7 +4,7 @@ Motions that need their momentum (``MotionSpec.retime=False``, ``clamp_lead=True
 supine_situp_rock_robust, prone_elbow_knees_quick) keep their searched keyframe times;
 :func:`clamp_goal_lead` cuts their torque peaks on all five robustness players instead, and (with
 ``spread_starts``) from the rest states a composed get-up may arrive in
-(:func:`arrival_spread_starts`).
+(``robot_rise.filter.arrival_spread_starts``).
 """
 
 from __future__ import annotations
@@ -14,12 +14,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from robot_rise.filter.composed import ARRIVAL_MAX_JOINT_RAD, ARRIVAL_SETTLE_S, settled_start
+from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
 from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
 from robot_rise.posture import Posture
 from robot_rise.servo import servo_arrays
 from robot_rise.sim.player import Player, Recording
-from robot_rise.sim.variants import ModelVariant, variant_start
 from robot_rise.trajectory import Trajectory
 
 __all__ = [
@@ -29,8 +28,6 @@ __all__ = [
     "LEAD_CLAMP_TARGET",
     "LEAD_CLAMP_WARM_ITER",
     "LEAD_CLAMP_WINDOW_S",
-    "ARRIVAL_SPREAD_STARTS",
-    "arrival_spread_starts",
     "clamp_goal_lead",
 ]
 
@@ -42,17 +39,6 @@ LEAD_CLAMP_WARM_ITER = 12  # clamp_goal_lead: iterations at the uniform ratio be
 LEAD_CLAMP_MAX_ITER = 40  # clamp_goal_lead: iterations (each plays every player once)
 LEAD_CLAMP_WINDOW_S = 0.05  # clamp_goal_lead: a violation lowers the ratio of that joint within this window [s]
 LEAD_CLAMP_STEP = 0.02  # clamp_goal_lead: how much a violation lowers the local ratio per iteration
-ARRIVAL_SPREAD_STARTS = 4  # arrival_spread_starts: rest states a clamped motion is also followed from (ours)
-
-
-def arrival_spread_starts(robot: Robot, start: Posture, n: int = ARRIVAL_SPREAD_STARTS) -> tuple[Posture, ...]:
-    """``n`` seeded copies of a motion's start posture with every joint off by up to
-    ``ARRIVAL_MAX_JOINT_RAD``: where an approach that a composed proof accepts may leave the body
-    (``robot_rise.filter.composed``: gear friction leaves a loaded joint degrees from where the
-    motion's own start rests, and a momentum motion's saturated first pull then costs torque)."""
-    return tuple(variant_start(start, robot, ModelVariant(f"arrival spread {k}", seed=k, start_spread_rad=ARRIVAL_MAX_JOINT_RAD))
-                 for k in range(1, n + 1))
-
 
 def clamp_goal_lead(
     robot: Robot,

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.authoring.adapt import adapt_to_body, fit_to_body, reference_statics
-from robot_rise.authoring.goal_lead import arrival_spread_starts, clamp_goal_lead
+from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import settle
 from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
@@ -41,6 +41,7 @@ from robot_rise.filter import (
     PREDICTED_KEY,
     EnsembleReplayer,
     Proof,
+    arrival_spread_starts,
     command_limits_for,
     conform,
     predicted_positions,

@@ -32,6 +32,7 @@ from robot_rise.filter.command_limits import (
 )
 from robot_rise.filter.composed import (
     ARRIVAL_SETTLE_S,
+    ARRIVAL_SPREAD_STARTS,
     COMPOSED_KEY,
     MAX_WHOLE_REPLAYS,
     TAIL_MAX_STRETCH,
@@ -39,6 +40,7 @@ from robot_rise.filter.composed import (
     ComposedProof,
     RestPose,
     StartProof,
+    arrival_spread_starts,
     gravity_angle_rad,
     prove_composed,
     prove_start,
@@ -103,6 +105,8 @@ __all__ = [
     "COMBINED_VARIANTS_KEY",
     "with_ensemble",
     "prove_composed",
+    "arrival_spread_starts",
+    "ARRIVAL_SPREAD_STARTS",
     "prove_start",
     "settled_start",
     "StartProof",

@@ -41,14 +41,17 @@ import numpy as np
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.ensemble import EnsembleReplayer
 from robot_rise.filter.prediction import PREDICTED_KEY, PredictedPositions, predicted_positions
-from robot_rise.filter.proof import Proof, VariantVerdict
+from robot_rise.filter.proof import Proof, VariantVerdict, prove
+from robot_rise.model import Robot
 from robot_rise.posture import Posture
-from robot_rise.sim.player import Recording
-from robot_rise.sim.variants import combined_variants
+from robot_rise.sim.player import Player, Recording
+from robot_rise.sim.variants import ModelVariant, combined_variants, variant_start
 from robot_rise.trajectory import Trajectory
 
 __all__ = [
     "ARRIVAL_SETTLE_S",
+    "ARRIVAL_SPREAD_STARTS",
+    "arrival_spread_starts",
     "MAX_WHOLE_REPLAYS",
     "TAIL_MAX_STRETCH",
     "COMPOSED_KEY",
@@ -78,6 +81,7 @@ ARRIVAL_REST_ROOT_SPEED_M_S = 0.01  # root slower than this
 TAIL_TIME_TOLERANCE_S = 1e-4
 TAIL_TARGET_TOLERANCE_RAD = 1e-5
 TAIL_MAX_STRETCH = 1.0 + 1e-4  # FilterConfig.motion_max_stretch of the nominal filter: the library part not slowed
+ARRIVAL_SPREAD_STARTS = 4  # arrival_spread_starts: rest states a start proof also proves the nominal model from (ours)
 # Variants that arrive elsewhere are replayed whole, up to this many (ours: one or two whole
 # replays, ~0.15 s each, instead of the next candidate's plan and proof; more than that and the
 # approach is not the one the start proof had in mind)
@@ -108,6 +112,11 @@ class StartProof:
         rest: each variant's rest pose at the end of the settle.
         tolerance_rad: per joint, the variants' spread over the motion [rad] (the executor's band).
         tilt_tolerance_rad: the same for the torso's tilt [rad].
+        spread_proven: the nominal model proves the motion (stands, within the torque bound) after
+            the settle from every :func:`arrival_spread_starts` too. Where it does not, an arrival
+            within the tolerances is not as good as the motion's own start (a landing impact's
+            torque is that sensitive: the sit-up peaks at 1.00 from one of them), and the motion
+            is not joined by composition (``composable``).
     """
 
     motion: str
@@ -115,10 +124,17 @@ class StartProof:
     rest: tuple[RestPose, ...]
     tolerance_rad: np.ndarray
     tilt_tolerance_rad: float
+    spread_proven: bool = True
 
     @property
     def all_stand(self) -> bool:
         return all(v.standing for v in self.verdicts)
+
+    @property
+    def composable(self) -> bool:
+        """A get-up may join the motion by a composed proof: every variant stands from the rest
+        pose and the nominal model proves the motion from every arrival-spread start."""
+        return self.all_stand and self.spread_proven
 
 
 @dataclass(frozen=True)
@@ -152,6 +168,15 @@ class ComposedProof:
     proof: Proof
     arrivals: tuple[Arrival, ...]
     report: dict[str, Any]
+
+
+def arrival_spread_starts(robot: Robot, start: Posture, n: int = ARRIVAL_SPREAD_STARTS) -> tuple[Posture, ...]:
+    """``n`` seeded copies of a motion's start posture with every joint off by up to
+    ``ARRIVAL_MAX_JOINT_RAD``: where an approach that a composed proof accepts may leave the body
+    (gear friction leaves a loaded joint degrees from where the motion's own start rests, and a
+    momentum motion's saturated first pull then costs torque)."""
+    return tuple(variant_start(start, robot, ModelVariant(f"arrival spread {k}", seed=k, start_spread_rad=ARRIVAL_MAX_JOINT_RAD))
+                 for k in range(1, n + 1))
 
 
 def gravity_angle_rad(qa: np.ndarray, qb: np.ndarray) -> float:
@@ -188,10 +213,14 @@ def prove_start(name: str, motion_trajectory: Trajectory, replayer: EnsembleRepl
         nominal: the nominal replay of ``settled_start(motion_trajectory)`` (the executor's band
             is the variants' spread around it).
     """
-    result, recs = replayer.replay(settled_start(motion_trajectory), config=config)
+    settled = settled_start(motion_trajectory)
+    result, recs = replayer.replay(settled, config=config)
     band = PredictedPositions.from_dict(predicted_positions(nominal, ensemble=recs))
+    player = Player(replayer.robot, replayer.scene)
+    spread_proven = all(prove(replayer.robot, settled, scene=replayer.scene, config=config, player=player, start=s)[2].proven
+                        for s in arrival_spread_starts(replayer.robot, motion_trajectory.start))
     return StartProof(name, result.verdicts, tuple(_rest_at(r, ARRIVAL_SETTLE_S) for r in recs),
-                      band.tolerance_rad, float(band.tilt_tolerance_rad or 0.0))
+                      band.tolerance_rad, float(band.tilt_tolerance_rad or 0.0), spread_proven)
 
 
 def _arrival(label: str, rec: Recording, rest: RestPose, config: FilterConfig) -> Arrival:
