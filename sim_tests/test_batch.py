@@ -81,7 +81,11 @@ def test_task_ids_depend_on_every_input_and_on_nothing_else(tmp_path):
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"filter_config": FilterConfig(envelope_margin=0.2)}),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"budget_s": 10.0}),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"candidates": 1}),
+        make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"composed": True}),
     ]
+    # an option added later leaves the ids of stores written before it as they were, at its default
+    assert '"composed"' not in a[0].options
+    assert [t.id for t in a] == [t.id for t in make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"composed": False})]
     assert len({t.id for t in a} | {t.id for tasks in others for t in tasks}) == 2 * (1 + len(others))
     # the scene's content, not only its name: a copy of flat.xml that differs by one byte is another scene
     flat = (Path(robot.directory).parent.parent / "scenes" / "flat.xml").read_text()
@@ -93,6 +97,18 @@ def test_task_ids_depend_on_every_input_and_on_nothing_else(tmp_path):
     assert before.scene_digest != after.scene_digest and before.id != after.id
     with pytest.raises(RobotRiseError, match="not a batch option"):
         make_tasks([robot], n=1, seed=0, rise_options={"progress": print})
+
+
+def test_a_composed_batch_proves_by_composition_and_the_whole_check_agrees(tmp_path):
+    from robot_rise.filter import COMPOSED_KEY, check
+
+    out = tmp_path / "composed"
+    summary = run_batch(out=out, n=1, seed=3, kinds=("prone",), rise_options={"composed": True}, jobs=1)
+    (row,) = ResultStore(out).rows()
+    assert summary.ran == 1 and row["proven"], row["reason"]
+    tr = read_trajectory(out / row["trajectory"])
+    assert COMPOSED_KEY in tr.report and tr.report["connecting_frame"] == 0
+    assert check(load_robot(None), tr).proven  # every variant replayed whole: the same verdict
 
 
 def test_a_rerun_with_other_options_runs_again_instead_of_skipping(tmp_path):

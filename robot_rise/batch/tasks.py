@@ -46,8 +46,9 @@ __all__ = [
 TASK_SCHEME = "robot-rise/batch-task@2"
 """Part of every id: a change of what a task computes from its inputs changes this, and so every id."""
 
-RESULT_OPTIONS = ("budget_s", "candidates", "retries", "filter_config")
+RESULT_OPTIONS = ("budget_s", "candidates", "retries", "filter_config", "composed")
 """The keyword arguments of :func:`robot_rise.rise.rise` a batch may set; each is part of the id."""
+_KEYED_ONLY_IF_SET = ("composed",)  # options added after stores were written: at their default they leave the id as it was
 
 
 @dataclass(frozen=True)
@@ -130,6 +131,7 @@ def options_key(rise_options: Mapping[str, Any] | None = None) -> str:
         raise RobotRiseError(f"rise option {unknown[0]!r} is not a batch option; a batch takes {', '.join(RESULT_OPTIONS)}")
     params = inspect.signature(rise).parameters
     full = {name: given.get(name, params[name].default) for name in RESULT_OPTIONS}
+    full = {k: v for k, v in full.items() if not (k in _KEYED_ONLY_IF_SET and v == params[k].default)}
     return json.dumps(_jsonable(full), sort_keys=True, separators=(",", ":"))
 
 
