@@ -26,7 +26,7 @@ few degrees from where another approach would), not a theorem. ``robot-rise chec
 whole trajectory on every variant (the uncomposed proof); BENCHMARKS.md reports how often the
 two agree. ``rise(..., composed=True)`` (the guard) composes where it applies and proves whole
 where it does not (another scene than the library's, a library part the nominal filter had to
-reshape, a variant that arrives elsewhere).
+reshape, a motion whose start proof is not ``composable``).
 """
 
 from __future__ import annotations
