@@ -477,9 +477,9 @@ def _composed_candidate(
     cols = [motion.trajectory.joint_names.index(j) for j in plan.joint_names]
     first = motion.trajectory.q[0, cols]
     step = float(np.max(np.abs(plan.q[-1] - first)))
-    if 0.0 < step <= SAME_TARGETS_RAD:  # the plan ends there but for rounding: end it exactly there, no step
+    if step <= SAME_TARGETS_RAD:  # the plan ends there (but for rounding): end it exactly there, no step
         plan = dataclasses.replace(plan, q=np.vstack([plan.q[:-1], first]))
-    elif step > 0.0:  # the plan ends within the limits the library's first row may graze: go there first
+    else:  # the plan ends within the limits the library's first row may graze: go there first
         gap = max(config.blend_s, step / 2.0)
         root = None if plan.root is None else np.vstack([plan.root, plan.root[-1:]])
         plan = dataclasses.replace(plan, t=np.append(plan.t, plan.t[-1] + gap), q=np.vstack([plan.q, first]), root=root)
