@@ -17,13 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robot_rise.constants import TARGET_NOISE_RAD
 from robot_rise.filter import FilterConfig, check, replay_random_variants
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
 
 __all__ = ["Margins", "NOISE_RAD", "margins_of"]
 
-NOISE_RAD = 1e-6  # target noise of the knife-edge test (issue 14: a file's rounding is 5e-7 rad) [rad]
+NOISE_RAD = TARGET_NOISE_RAD  # target noise of the knife-edge test (robot_rise.constants) [rad]
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
 - ``command_limits``: the limits the executor enforces, and targets conformed to them.
 - ``prediction``: the positions the executor should see (the proof's replay, the variants' spread).
+- ``noise``: the nominal model's replays under 1e-6 rad of target noise (no knife-edge proofs).
 - ``ensemble``: the replay on every model variant (``robot_rise.sim.variants``), ``check``.
 - ``loop``: ``dynamics_filter``, iterating reshape and proof.
 - ``robustness``: one replay on a deliberately wrong model (``stands_under``).
@@ -51,6 +52,7 @@ from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
+from robot_rise.filter.noise import NOISE_CHECK_KEY, NoiseCheck, NoiseReplay, noise_check, noisy_trajectory, with_noise
 from robot_rise.filter.ensemble import (
     COMBINED_VARIANTS_KEY,
     EnsembleReplayer,
@@ -93,6 +95,12 @@ __all__ = [
     "time_scale",
     "find_violations",
     "dynamics_filter",
+    "NOISE_CHECK_KEY",
+    "NoiseCheck",
+    "NoiseReplay",
+    "noise_check",
+    "noisy_trajectory",
+    "with_noise",
     "Proof",
     "Permit",
     "prove",

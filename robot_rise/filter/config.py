@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_rise.constants import ENVELOPE_MARGIN
+from robot_rise.constants import ENVELOPE_MARGIN, TARGET_NOISE_RAD
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 
 __all__ = ["FilterConfig"]
@@ -52,6 +52,14 @@ class FilterConfig:
             variants (``robot_rise.sim.variants.combined_variants``); ``rise`` sets it per
             candidate from ``robot_rise.library.Motion.combined_variants``.
         ensemble_rounds: times a motion some variant falls with is slowed and proven again.
+        noise_replays: the nominal model also replays this many copies of the proven targets with
+            uniform noise of +-``noise_rad`` (``robot_rise.filter.noise``); each must hold the
+            torque bound and end where the noiseless replay does (0: no noise check).
+        noise_rad: the target noise [rad] (``robot_rise.constants.TARGET_NOISE_RAD``).
+        noise_hold_s: each noisy replay goes on this long after the trajectory's end [s] (the
+            landing's last impacts; the noiseless replay judges the rest of the hold).
+        noise_seed: seed of the noise (a proof is repeatable).
+        noise_rounds: times a motion a noisy replay breaks is slowed there and proven again.
     """
 
     envelope_margin: float = ENVELOPE_MARGIN
@@ -73,3 +81,8 @@ class FilterConfig:
     ensemble: bool = True
     combined_variants: int = 0
     ensemble_rounds: int = 3
+    noise_replays: int = 6
+    noise_rad: float = TARGET_NOISE_RAD
+    noise_hold_s: float = 0.5
+    noise_seed: int = 0
+    noise_rounds: int = 2

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.filter.config import FilterConfig
+from robot_rise.filter.noise import noise_check, with_noise
 from robot_rise.filter.proof import Proof, VariantVerdict, prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
@@ -153,8 +154,9 @@ def check(
     scene: str | os.PathLike[str] | None = None,
     config: FilterConfig = FilterConfig(),
 ) -> Proof:
-    """Replay ``trajectory`` from its start and return its proof, on the nominal model and (with
-    ``config.ensemble``) on every variant of the ensemble: what ``robot-rise check`` does.
+    """Replay ``trajectory`` from its start and return its proof, on the nominal model (with its
+    ``config.noise_replays`` noisy replays: ``noise.py``) and (with ``config.ensemble``) on every
+    variant of the ensemble: what ``robot-rise check`` does.
 
     Args:
         robot: the robot.
@@ -165,7 +167,10 @@ def check(
     if scene is None:
         scene = str(trajectory.report.get("scene") or "flat")
     config = dataclasses.replace(config, combined_variants=proven_combined_variants(trajectory))
-    proof = prove(robot, trajectory, scene=scene, config=config)[2]
+    player = Player(robot, scene)
+    rec, _, proof = prove(robot, trajectory, scene=scene, config=config, player=player)
+    if config.noise_replays > 0:
+        proof = with_noise(proof, noise_check(trajectory, rec, player, config=config)[0])
     if not config.ensemble:
         return proof
     return with_ensemble(proof, EnsembleReplayer(robot, scene).replay(trajectory, config=config)[0])

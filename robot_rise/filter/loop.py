@@ -49,9 +49,10 @@ from robot_rise.filter.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, 
 from robot_rise.filter.join import time_scale
 from robot_rise.filter.prediction import PREDICTED_KEY, predicted_positions
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
+from robot_rise.filter.noise import NOISE_CHECK_KEY, NoiseCheck, noise_check, with_noise
 from robot_rise.filter.proof import Proof, prove_with_violations
 from robot_rise.filter.slope import SLOPE_MIN_RAD, ground_tilt_vector, turn_stance_to_slope
-from robot_rise.filter.violations import find_violations, saturation_rad
+from robot_rise.filter.violations import Violation, find_violations, saturation_rad
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
@@ -144,8 +145,34 @@ def dynamics_filter(
     if config.ensemble and ensemble is None:
         ensemble = EnsembleReplayer(robot, scene)
     limits = command_limits or command_limits_for(robot)
-    result = _nominal_filter(robot, commanded, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
-                             progress=progress, limits=limits, join_row=join_row, stop_at_join=stop_at_join)
+    noise_rounds = 0
+
+    def nominal(guess: Trajectory, stop: bool) -> FilterResult:
+        """The nominal filter, then its noise check (``noise.py``), slowing where a noisy replay breaks."""
+        nonlocal noise_rounds
+        result = _nominal_filter(robot, guess, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
+                                 progress=progress, limits=limits, join_row=join_row, stop_at_join=stop)
+        while result.proven and config.noise_replays > 0:
+            checked, recs = noise_check(result.trajectory, result.recording, player, start=start, config=config)
+            result = _with_noise_check(result, checked)
+            if checked.holds or noise_rounds >= config.noise_rounds:
+                break
+            noise_rounds += 1
+            saturation = saturation_rad(robot)
+            found = [v for r, c in zip(recs, checked.replays) if not c.holds for v in find_violations(r, config, saturation_rad=saturation)]
+            slowed = _slowed(result.trajectory, found, config, protect_until_s)
+            if slowed.duration_s > config.max_duration_s or _overstretched(slowed, commanded, join_row, _stretch_cap(config)):
+                break
+            log.info("noise round %d: %s; slowing", noise_rounds, "; ".join(checked.failures()[:2]))
+            again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
+                                    start=start, protect_until_s=protect_until_s, progress=progress, limits=limits, join_row=join_row,
+                                    stop_at_join=stop)
+            if not again.proven:
+                break
+            result = again
+        return result
+
+    result = nominal(commanded, stop_at_join)
     rounds = 0
     recs: list[Recording] = []
     ensemble_s = 0.0
@@ -166,21 +193,18 @@ def dynamics_filter(
         # the motion is a fluke of the nominal model: slow where the falling variants went wrong
         saturation = saturation_rad(robot)
         found = [v for r, vv in zip(recs, replayed.verdicts) if not vv.standing for v in find_violations(r, config, saturation_rad=saturation)]
-        windows = [(max(v.t_start_s - config.window_pad_s, protect_until_s), min(v.t_end_s + config.window_pad_s, result.trajectory.duration_s)) for v in found]
-        windows = [(a, b) for a, b in windows if b > a] or [(protect_until_s, result.trajectory.duration_s)]
-        slowed = time_scale(result.trajectory, windows, config.slow_factor)
+        slowed = _slowed(result.trajectory, found, config, protect_until_s)
         if slowed.duration_s > config.max_duration_s or _overstretched(slowed, commanded, join_row, config.motion_max_stretch):
             break
-        log.info("ensemble round %d: %d variants fall; slowing %d windows", rounds, len(failures), len(windows))
-        again = _nominal_filter(robot, dataclasses.replace(slowed, report=commanded.report), player, scene=scene, config=config,
-                                start=start, protect_until_s=protect_until_s, progress=progress, limits=limits, join_row=join_row)
+        log.info("ensemble round %d: %d variants fall; slowing", rounds, len(failures))
+        again = nominal(dataclasses.replace(slowed, report=commanded.report), False)
         if not again.proven:
             break
         result, recs = again, []
     # what the executor needs: the limits it was proven under, the positions to expect
     executed = {COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
                 COMBINED_VARIANTS_KEY: config.combined_variants,
-                "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds}
+                "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds, "noise_rounds": noise_rounds}
     return dataclasses.replace(result, report={**result.report, **executed},
                                trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **executed}))
 
@@ -290,6 +314,25 @@ def _nominal_filter(
     }
     final = Trajectory(robot.name, current.joint_names, current.t, current.q, start, {**current.report, **full_report}, None)
     return FilterResult(ok, final, rec, verdict, proof, tuple(history), reason, full_report)
+
+
+def _with_noise_check(result: FilterResult, checked: NoiseCheck) -> FilterResult:
+    """``result`` with its noise check's verdict in its proof, report and trajectory's report."""
+    proof = with_noise(result.proof, checked)
+    entries = {**proof.to_dict(), NOISE_CHECK_KEY: checked.to_dict()}
+    failures = checked.failures()
+    reason = result.reason if not failures else "; ".join(failures[:2]) + f" ({len(failures)} of {len(checked.replays)} noisy replays)"
+    return dataclasses.replace(result, proven=proof.proven, proof=proof, reason=reason, report={**result.report, **entries},
+                               trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **entries}))
+
+
+def _slowed(trajectory: Trajectory, found: list[Violation], config: FilterConfig, protect_until_s: float) -> Trajectory:
+    """``trajectory`` slowed around the violations ``found`` (padded), everything after
+    ``protect_until_s`` where none is local."""
+    windows = [(max(v.t_start_s - config.window_pad_s, protect_until_s), min(v.t_end_s + config.window_pad_s, trajectory.duration_s))
+               for v in found]
+    windows = [(a, b) for a, b in windows if b > a] or [(protect_until_s, trajectory.duration_s)]
+    return time_scale(trajectory, windows, config.slow_factor)
 
 
 def _stretch_cap(config: FilterConfig) -> float | None:

@@ -1,0 +1,60 @@
+"""The noise check: a proof must not hang on the last digits of its targets (issue 14)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robot_rise.filter import NOISE_CHECK_KEY, FilterConfig, check, dynamics_filter, noise_check, noisy_trajectory, prove
+from robot_rise.posture import Posture
+from robot_rise.sim.player import Player
+from robot_rise.trajectory import Trajectory
+
+SQUAT = dict(l_hip_pitch=-1.0, l_knee=2.0, l_ank_pitch=1.0, r_hip_pitch=1.0, r_knee=-2.0, r_ank_pitch=-1.0)
+
+
+def _squat(robot, seconds: float) -> Trajectory:
+    q0 = robot.stand_qpos[7:].copy()
+    q1 = q0.copy()
+    for name, value in SQUAT.items():
+        q1[robot.joint_index(name)] = value
+    stand = Posture(robot.name, robot.stand_qpos[:3], robot.stand_qpos[3:7], dict(zip(robot.joint_names, robot.stand_qpos[7:])))
+    return Trajectory(robot.name, robot.joint_names, np.array([0.0, 1.0, 2.0, 3.0]) * seconds / 3, [q0, q1, q1, q0], stand)
+
+
+def test_noisy_targets_differ_by_at_most_the_noise_and_are_seeded(robot):
+    tr = _squat(robot, 3.0)
+    a = noisy_trajectory(tr, np.random.default_rng(5), 1e-6)
+    b = noisy_trajectory(tr, np.random.default_rng(5), 1e-6)
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.t, tr.t)
+    assert 0 < np.max(np.abs(a.q - tr.q)) <= 1e-6
+
+
+def test_a_noiseless_noise_check_is_the_nominal_replay_again(robot):
+    # the player is deterministic: zero noise replays the nominal exactly (the gaps are the noise's alone)
+    tr = _squat(robot, 3.0)
+    player = Player(robot, "flat")
+    rec, _, proof = prove(robot, tr, player=player)
+    checked, recs = noise_check(tr, rec, player, config=FilterConfig(noise_replays=2, noise_rad=0.0))
+    assert proof.proven and checked.holds and len(recs) == 2
+    for r in checked.replays:
+        assert r.tilt_gap_rad == 0.0 and r.height_gap_m == 0.0 and r.joint_gap_rad == 0.0
+        assert r.peak_torque_ratio <= proof.peak_torque_ratio  # the noisy replays stop 0.5 s after the end
+    assert checked.to_dict()["holding"] == 2
+
+
+def test_a_proof_that_noise_breaks_is_refused_by_check_and_reshaped_by_the_filter(robot):
+    # a quick squat filtered without the noise check; 0.05 rad of target noise
+    # (a stand-in for a knife edge: 1e-6 rad breaks only chaotic landings) pushes it over
+    noisy = FilterConfig(ensemble=False, noise_replays=3, noise_rad=0.05)
+    fast = dynamics_filter(robot, _squat(robot, 0.45), config=FilterConfig(ensemble=False, noise_replays=0))
+    assert fast.proven, fast.reason
+    refused = check(robot, fast.trajectory, config=noisy)
+    assert not refused.proven
+    assert any("target noise +-0.05 rad" in p for p in refused.problems), refused.problems
+    # the filter with the noise check slows where the noisy replays broke, until they hold
+    result = dynamics_filter(robot, _squat(robot, 0.45), config=noisy)
+    assert result.proven, result.reason
+    entry = result.trajectory.report[NOISE_CHECK_KEY]
+    assert entry["replays"] == entry["holding"] == 3 and entry["worst_torque_ratio"] <= 0.9
+    assert result.trajectory.duration_s > fast.trajectory.duration_s and result.trajectory.report["noise_rounds"] >= 1
+    assert check(robot, result.trajectory, config=noisy).proven
