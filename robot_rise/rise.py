@@ -34,11 +34,14 @@ from robot_rise.filter import (
     dynamics_filter,
     gravity_angle_rad,
     join_with_blend,
+    load_start_proof,
     predicted_positions,
     prove,
     prove_composed,
     prove_start,
+    save_start_proof,
     settled_start,
+    start_proof_key,
     StartProof,
     stands_under,
     with_ensemble,
@@ -156,11 +159,18 @@ class RiseContext:
     def start_proof(self, motion: Motion, config: FilterConfig = FilterConfig()) -> StartProof | None:
         """The motion proven from rest on its first targets on every variant
         (:func:`robot_rise.filter.prove_start`), None where the nominal model does not prove it;
-        computed on first use (``warm_start_proofs`` does all at once), then reused."""
+        read from the start proof cache (``robot_rise.filter.start_cache``) or computed on first
+        use (``warm_start_proofs`` does all at once) and kept there, then reused."""
         if motion.name not in self._start_proofs:
             config = dataclasses.replace(config, combined_variants=motion.combined_variants)
-            rec, _, nominal = prove(self.robot, settled_start(motion.trajectory), scene=self.scene, config=config, start=motion.start)
-            self._start_proofs[motion.name] = prove_start(motion.name, motion.trajectory, self.ensemble(), config, rec) if nominal.proven else None
+            key = start_proof_key(self.robot, self.scene, motion.name, motion.trajectory, config)
+            kept = load_start_proof(key)
+            if kept is None:
+                rec, _, nominal = prove(self.robot, settled_start(motion.trajectory), scene=self.scene, config=config, start=motion.start)
+                kept = prove_start(motion.name, motion.trajectory, self.ensemble(), config, rec) if nominal.proven else None
+                if kept is not None:
+                    save_start_proof(key, kept)
+            self._start_proofs[motion.name] = kept
         return self._start_proofs[motion.name]
 
     def warm_start_proofs(self, config: FilterConfig = FilterConfig()) -> int:

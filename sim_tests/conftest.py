@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 import pytest
 
+from robot_rise.filter import CACHE_ENV
 from robot_rise.model import Robot, load_robot
 from robot_rise.robot_import import ImportResult, import_robot
 
@@ -20,6 +21,15 @@ class Imported(NamedTuple):
 
     result: ImportResult
     robot: Robot
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _start_proof_cache(tmp_path_factory: pytest.TempPathFactory):
+    """Start proofs kept for this session only: never the user's cache, a clean one each run."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv(CACHE_ENV, str(tmp_path_factory.mktemp("cache")))
+    yield
+    patch.undo()
 
 
 @pytest.fixture(scope="session")

@@ -133,3 +133,38 @@ def test_when_no_candidate_composes_rise_proves_them_whole(robot, context, monke
     skipped = [a for a in result.attempts if a.skipped]  # the composed pass planned nothing
     assert skipped and all(not a.planned and a.frame == 0 and "composed" in a.describe() for a in skipped)
     assert any(a.proven for a in result.attempts[len(skipped):])
+
+
+def test_a_start_proof_is_kept_on_disk_read_back_whole_and_proven_again_where_its_file_breaks(robot, context, tmp_path, monkeypatch, caplog):
+    import importlib
+    import json
+
+    from robot_rise.filter import CACHE_ENV, START_PROOF_FORMAT, start_proof_key
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    motion = context.library.get(MOTION)
+    first = RiseContext.build(robot, "flat").start_proof(motion)
+    files = list((tmp_path / "start_proofs").glob("*.json"))
+    config = FilterConfig(combined_variants=motion.combined_variants)
+    key = start_proof_key(robot, "flat", motion.name, motion.trajectory, config)
+    assert [f.stem for f in files] == [key] and json.loads(files[0].read_text())["format"] == START_PROOF_FORMAT
+    # another process reads it: nothing proven again, the same proof
+    monkeypatch.setattr(importlib.import_module("robot_rise.rise"), "prove_start", lambda *a, **k: pytest.fail("proven again"))
+    again = RiseContext.build(robot, "flat").start_proof(motion)
+    assert again.to_dict() == first.to_dict() and again.composable == first.composable
+    # another margin, another motion timing: other keys
+    assert start_proof_key(robot, "flat", motion.name, motion.trajectory, dataclasses.replace(config, envelope_margin=0.2)) != key
+    slower = dataclasses.replace(motion.trajectory, t=motion.trajectory.t * 1.01)
+    assert start_proof_key(robot, "flat", motion.name, slower, config) != key
+    # a broken file is proven again (with a warning) and replaced
+    monkeypatch.undo()
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    files[0].write_text('{"format": "robot-rise/start-proof@1", "key": "')
+    with caplog.at_level("WARNING"):
+        fixed = RiseContext.build(robot, "flat").start_proof(motion)
+    assert "does not read" in caplog.text and fixed.to_dict() == first.to_dict()
+    assert json.loads(files[0].read_text())["key"] == key
+    # off: nothing kept
+    monkeypatch.setenv(CACHE_ENV, "off")
+    RiseContext.build(robot, "flat").start_proof(context.library.get("prone_elbow_knees"))
+    assert len(list((tmp_path / "start_proofs").glob("*.json"))) == 1

@@ -16,6 +16,7 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``prediction``: the positions the executor should see (the proof's replay, the variants' spread).
 - ``noise``: the nominal model's replays under 1e-6 rad of target noise (no knife-edge proofs).
 - ``ensemble``: the replay on every model variant (``robot_rise.sim.variants``), ``check``.
+- ``start_cache``: start proofs kept on disk per robot, scene, motion and code.
 - ``loop``: ``dynamics_filter``, iterating reshape and proof.
 - ``robustness``: one replay on a deliberately wrong model (``stands_under``).
 """
@@ -52,6 +53,14 @@ from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
+from robot_rise.filter.start_cache import (
+    CACHE_ENV,
+    START_PROOF_FORMAT,
+    cache_directory,
+    load_start_proof,
+    save_start_proof,
+    start_proof_key,
+)
 from robot_rise.filter.noise import NOISE_CHECK_KEY, NoiseCheck, NoiseReplay, noise_check, noisy_trajectory, with_noise
 from robot_rise.filter.ensemble import (
     COMBINED_VARIANTS_KEY,
@@ -95,6 +104,12 @@ __all__ = [
     "time_scale",
     "find_violations",
     "dynamics_filter",
+    "CACHE_ENV",
+    "START_PROOF_FORMAT",
+    "cache_directory",
+    "load_start_proof",
+    "save_start_proof",
+    "start_proof_key",
     "NOISE_CHECK_KEY",
     "NoiseCheck",
     "NoiseReplay",

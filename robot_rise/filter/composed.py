@@ -140,6 +140,30 @@ class StartProof:
         pose and the nominal model proves the motion from every arrival-spread start."""
         return self.all_stand and self.spread_proven
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON values (``robot_rise.filter.start_cache`` writes them)."""
+        return {
+            "motion": self.motion,
+            "verdicts": [v.to_dict() for v in self.verdicts],
+            "rest": [{"root_quat_wxyz": r.root_quat_wxyz.tolist(), "root_z_m": r.root_z_m, "joints_rad": r.joints_rad.tolist()}
+                     for r in self.rest],
+            "tolerance_rad": self.tolerance_rad.tolist(),
+            "tilt_tolerance_rad": self.tilt_tolerance_rad,
+            "spread_proven": self.spread_proven,
+        }
+
+    @classmethod
+    def from_dict(cls, obj: Any) -> StartProof:
+        """The inverse of :meth:`to_dict`.
+
+        Raises:
+            KeyError, TypeError, ValueError: not what ``to_dict`` writes.
+        """
+        rest = tuple(RestPose(np.asarray(r["root_quat_wxyz"], dtype=float), float(r["root_z_m"]), np.asarray(r["joints_rad"], dtype=float))
+                     for r in obj["rest"])
+        return cls(str(obj["motion"]), tuple(VariantVerdict.from_dict(v) for v in obj["verdicts"]), rest,
+                   np.asarray(obj["tolerance_rad"], dtype=float), float(obj["tilt_tolerance_rad"]), bool(obj["spread_proven"]))
+
 
 @dataclass(frozen=True)
 class Arrival:
