@@ -18,7 +18,6 @@ from drivers.group import ServoGroup
 from drivers.port import open_port
 from drivers.safety import SafetyLimits
 from drivers.servo_map import ServoMap, load_servo_map
-from robot_rise.filter import CACHE_ENV
 
 REPO = Path(__file__).resolve().parents[1]
 SERVO_MAP = REPO / "configs" / "robots" / "op3" / "servos.toml"
@@ -96,12 +95,3 @@ def hardware_port() -> str:
     if not port:
         pytest.skip("needs a real Dynamixel bus: set ROBOT_RISE_PORT")
     return port
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _start_proof_cache(tmp_path_factory: pytest.TempPathFactory):
-    """Start proofs kept for this session only: never the user's cache, a clean one each run."""
-    patch = pytest.MonkeyPatch()
-    patch.setenv(CACHE_ENV, str(tmp_path_factory.mktemp("cache")))
-    yield
-    patch.undo()
