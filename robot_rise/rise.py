@@ -28,6 +28,7 @@ from robot_rise.filter import (
     EnsembleReplayer,
     FilterConfig,
     FilterResult,
+    NOISE_CHECK_KEY,
     Proof,
     command_limits_for,
     conform,
@@ -35,6 +36,7 @@ from robot_rise.filter import (
     gravity_angle_rad,
     join_with_blend,
     load_start_proof,
+    noise_check,
     predicted_positions,
     prove,
     prove_composed,
@@ -45,7 +47,9 @@ from robot_rise.filter import (
     StartProof,
     stands_under,
     with_ensemble,
+    with_noise,
 )
+from robot_rise.sim.player import Player
 from robot_rise.sim.variants import ModelVariant
 from robot_rise.library import (Connection, FrameIndex, KMeansTree, Motion, MotionLibrary, connecting_posture, connection_candidates, load_library,
                                 lying_frames, robot_library_dir)
@@ -154,24 +158,26 @@ class RiseContext:
     tree: KMeansTree
     _obstacle_checker: ValidityChecker | None = field(default=None, repr=False)
     _ensemble: EnsembleReplayer | None = field(default=None, repr=False)
-    _start_proofs: dict[str, StartProof | None] = field(default_factory=dict, repr=False)
+    _start_proofs: dict[tuple[str, FilterConfig], StartProof | None] = field(default_factory=dict, repr=False)
 
     def start_proof(self, motion: Motion, config: FilterConfig = FilterConfig()) -> StartProof | None:
         """The motion proven from rest on its first targets on every variant
         (:func:`robot_rise.filter.prove_start`), None where the nominal model does not prove it;
         read from the start proof cache (``robot_rise.filter.start_cache``) or computed on first
         use (``warm_start_proofs`` does all at once) and kept there, then reused."""
-        if motion.name not in self._start_proofs:
-            config = dataclasses.replace(config, combined_variants=motion.combined_variants)
-            key = start_proof_key(self.robot, self.scene, motion.name, motion.trajectory, config)
+        # what a start proof rests on: the margins, noise and hold of the caller's config, the
+        # motion's combined variants; not the stretch bounds of a get-up's nominal filter
+        config = dataclasses.replace(config, combined_variants=motion.combined_variants, max_stretch=None, motion_max_stretch=None)
+        if (motion.name, config) not in self._start_proofs:
+            key = start_proof_key(self.robot, self.scene, motion.name, motion.trajectory, motion.start, config)
             kept = load_start_proof(key)
             if kept is None:
                 rec, _, nominal = prove(self.robot, settled_start(motion.trajectory), scene=self.scene, config=config, start=motion.start)
                 kept = prove_start(motion.name, motion.trajectory, self.ensemble(), config, rec) if nominal.proven else None
                 if kept is not None:
                     save_start_proof(key, kept)
-            self._start_proofs[motion.name] = kept
-        return self._start_proofs[motion.name]
+            self._start_proofs[motion.name, config] = kept
+        return self._start_proofs[motion.name, config]
 
     def warm_start_proofs(self, config: FilterConfig = FilterConfig()) -> int:
         """Every library motion's start proof now (what a live get-up precomputes per robot); how many compose."""
@@ -370,7 +376,7 @@ def _rise_candidates(
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
         if composed and conn.frame != 0:  # a composed proof starts where the motion's own proof started
             conn = dataclasses.replace(conn, frame=0, time_s=0.0)
-        if composed and not _composable(context, library.get(conn.motion)):  # nothing to plan for: the whole pass may try it
+        if composed and not _composable(context, library.get(conn.motion), filter_config):  # nothing to plan for: the whole pass may try it
             attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, skipped=NOT_COMPOSABLE))
             continue
         t0 = time.monotonic()
@@ -503,7 +509,7 @@ def _composed_candidate(
     if not nominal.proven:
         return None, f"the nominal filter, the library part unchanged: {nominal.reason}"
     t1 = time.perf_counter()
-    start_proof = context.start_proof(motion)
+    start_proof = context.start_proof(motion, config)
     if start_proof is None or not start_proof.composable:
         return None, NOT_COMPOSABLE
     found = prove_composed(nominal.proof, nominal.recording, nominal.trajectory, join_row=join_row, motion_trajectory=motion.trajectory,
@@ -512,14 +518,15 @@ def _composed_candidate(
         return None, "does not apply (another scene, or the library part reshaped)"
     if not found.proof.proven:
         return None, "; ".join(found.proof.problems[:3])
-    report = {**found.report, "ensemble_seconds": time.perf_counter() - t1, "ensemble_rounds": 0, "nominal_filter_seconds": t1 - t0}
+    report = {**found.report, "ensemble_seconds": time.perf_counter() - t1, "ensemble_rounds": 0, "nominal_filter_seconds": t1 - t0,
+              NOISE_CHECK_KEY: {"from_start_proof": motion.name}}
     return dataclasses.replace(nominal, trajectory=nominal.trajectory.with_report(**report), proof=found.proof,
                                report={**nominal.report, **report}), ""
 
 
-def _composable(context: RiseContext, motion: Motion) -> bool:
+def _composable(context: RiseContext, motion: Motion, config: FilterConfig) -> bool:
     """The motion's start proof allows a composed proof (``StartProof.composable``)."""
-    start_proof = context.start_proof(motion)
+    start_proof = context.start_proof(motion, config)
     return start_proof is not None and start_proof.composable
 
 
@@ -575,7 +582,12 @@ def _rise_again_from_where_it_fell(
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
     limits = command_limits_for(robot)
     combined = conform(join_with_blend(stage1, again.trajectory, 0, blend_s=filter_config.blend_s), limits)
-    rec, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=None, start=first.start)
+    player = Player(robot, scene)
+    rec, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=player, start=first.start)
+    noise: dict[str, Any] = {}
+    if proof.proven and filter_config.noise_replays > 0:  # the fall is where a landing is most sensitive
+        checked = noise_check(combined, rec, player, start=first.start, config=filter_config)[0]
+        proof, noise = with_noise(proof, checked), {NOISE_CHECK_KEY: checked.to_dict()}
     recs: list = []
     if proof.proven and filter_config.ensemble:
         replayed, recs = context.ensemble().replay(combined, start=first.start, config=filter_config)
@@ -584,9 +596,9 @@ def _rise_again_from_where_it_fell(
         log.info("combined recovery not proven on replay: %s", list(proof.problems))
         return None
     # the combined motion's proof, limits and predicted positions replace the second rise's
-    entries = {**proof.to_dict(), COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
+    entries = {**proof.to_dict(), **noise, COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
     tr = combined.with_report(
-        **{k: v for k, v in again.trajectory.report.items() if k not in entries},
+        **{k: v for k, v in again.trajectory.report.items() if k not in entries and k != NOISE_CHECK_KEY},
         **entries,
         recovery={"first_attempt_until_s": held_until, "first_attempt": failed.reason, "then": again.trajectory.report.get("motion")},
     )

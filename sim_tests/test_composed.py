@@ -139,23 +139,23 @@ def test_a_start_proof_is_kept_on_disk_read_back_whole_and_proven_again_where_it
     import importlib
     import json
 
-    from robot_rise.filter import CACHE_ENV, START_PROOF_FORMAT, start_proof_key
+    from robot_rise.filter import CACHE_ENV, START_PROOF_FORMAT, cache_directory, start_proof_key
 
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     motion = context.library.get(MOTION)
     first = RiseContext.build(robot, "flat").start_proof(motion)
     files = list((tmp_path / "start_proofs").glob("*.json"))
     config = FilterConfig(combined_variants=motion.combined_variants)
-    key = start_proof_key(robot, "flat", motion.name, motion.trajectory, config)
+    key = start_proof_key(robot, "flat", motion.name, motion.trajectory, motion.start, config)
     assert [f.stem for f in files] == [key] and json.loads(files[0].read_text())["format"] == START_PROOF_FORMAT
     # another process reads it: nothing proven again, the same proof
     monkeypatch.setattr(importlib.import_module("robot_rise.rise"), "prove_start", lambda *a, **k: pytest.fail("proven again"))
     again = RiseContext.build(robot, "flat").start_proof(motion)
     assert again.to_dict() == first.to_dict() and again.composable == first.composable
     # another margin, another motion timing: other keys
-    assert start_proof_key(robot, "flat", motion.name, motion.trajectory, dataclasses.replace(config, envelope_margin=0.2)) != key
+    assert start_proof_key(robot, "flat", motion.name, motion.trajectory, motion.start, dataclasses.replace(config, envelope_margin=0.2)) != key
     slower = dataclasses.replace(motion.trajectory, t=motion.trajectory.t * 1.01)
-    assert start_proof_key(robot, "flat", motion.name, slower, config) != key
+    assert start_proof_key(robot, "flat", motion.name, slower, motion.start, config) != key
     # a broken file is proven again (with a warning) and replaced
     monkeypatch.undo()
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
@@ -166,5 +166,6 @@ def test_a_start_proof_is_kept_on_disk_read_back_whole_and_proven_again_where_it
     assert json.loads(files[0].read_text())["key"] == key
     # off: nothing kept
     monkeypatch.setenv(CACHE_ENV, "off")
-    RiseContext.build(robot, "flat").start_proof(context.library.get("prone_elbow_knees"))
+    assert cache_directory() is None
+    assert RiseContext.build(robot, "flat").start_proof(context.library.get("prone_elbow_knees")) is not None
     assert len(list((tmp_path / "start_proofs").glob("*.json"))) == 1

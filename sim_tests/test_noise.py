@@ -58,3 +58,14 @@ def test_a_proof_that_noise_breaks_is_refused_by_check_and_reshaped_by_the_filte
     assert entry["replays"] == entry["holding"] == 3 and entry["worst_torque_ratio"] <= 0.9
     assert result.trajectory.duration_s > fast.trajectory.duration_s and result.trajectory.report["noise_rounds"] >= 1
     assert check(robot, result.trajectory, config=noisy).proven
+
+
+def test_a_noisy_replay_that_ends_elsewhere_than_the_noiseless_one_does_not_hold(robot):
+    # judged against the replay of another motion (a squat held down): same torque, another end
+    tr = _squat(robot, 3.0)
+    held = Trajectory(robot.name, robot.joint_names, tr.t, [tr.q[0], tr.q[1], tr.q[1], tr.q[1]], tr.start)
+    player = Player(robot, "flat")
+    other, _, _ = prove(robot, held, player=player)
+    checked, _ = noise_check(tr, other, player, config=FilterConfig(noise_replays=1))
+    assert not checked.holds
+    assert "ends elsewhere" in checked.failures()[0] and checked.replays[0].joint_gap_rad > 1.0

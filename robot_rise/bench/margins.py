@@ -6,7 +6,9 @@ margin, every ensemble variant standing: ``robot_rise.filter.check``):
 - the share of ``n`` random model variants (``robot_rise.sim.variants.random_variants``, every
   difference drawn at once from the ensemble's ranges, not the ensemble's own) that stand;
 - whether the verdict flips when every target gets uniform noise of +-``noise_rad`` (1e-6 rad:
-  the rounding of a trajectory file), over ``noise_trials`` seeded draws.
+  the rounding of a trajectory file), over ``noise_trials`` seeded draws. Each trial is a whole
+  ``check``, so it replays the proof's own noisy replays of the noisy targets too
+  (``FilterConfig.noise_replays``): a knife edge flips a trial if any of them finds it.
 """
 
 from __future__ import annotations

@@ -59,7 +59,8 @@ class FilterConfig:
         noise_hold_s: each noisy replay goes on this long after the trajectory's end [s] (the
             landing's last impacts; the noiseless replay judges the rest of the hold).
         noise_seed: seed of the noise (a proof is repeatable).
-        noise_rounds: times a motion a noisy replay breaks is slowed there and proven again.
+        noise_rounds: times (in total, per filter call) a motion a noisy replay breaks is slowed
+            there and proven again.
     """
 
     envelope_margin: float = ENVELOPE_MARGIN

@@ -109,6 +109,8 @@ def _replay_against(rec: Recording, nominal: Recording, config: FilterConfig) ->
     joint_gap = float(np.max(np.abs(rec.q[k] - nominal.q[kn]), initial=0.0))
     self_collision = bool(np.max(rec.self_penetration_m, initial=0.0) > config.self_penetration_tolerance_m)
     problems = []
+    if abs(float(rec.t[k] - nominal.t[kn])) > 1e-9:  # a noiseless replay held shorter than the noisy ones
+        problems.append(f"the noiseless replay ends at {nominal.t[kn]:.2f} s, before this one ({rec.t[k]:.2f} s)")
     if rec.peak_envelope_ratio > limit + 1e-9:
         worst = rec.joint_names[int(np.argmax(rec.envelope_ratio.max(axis=0)))]
         problems.append(f"torque {rec.peak_envelope_ratio:.2f} of the envelope (limit {limit:.2f}) at {worst}")

@@ -5,12 +5,13 @@ replays the motion, plus the noisy and spread replays), so a process that compos
 guard, ``rise --composed``, batch workers) started 45 s late. Each is kept in one JSON file
 (``format`` ``robot-rise/start-proof@1``) named by a SHA-256 key over everything it rests on: the
 robot's files (``Robot.digest``), the scene file, the motion's rows and start, the filter's
-configuration, the variants, the MuJoCo version and the source of the ``robot_rise`` package (so
-a code change proves again; stale proofs are never read).
+configuration, the variants, the MuJoCo and NumPy versions and the source of the ``robot_rise``
+package (so a code change proves again; stale proofs are never read, only left behind: delete the
+directory to reclaim them).
 
 Where: ``$ROBOT_RISE_CACHE`` if set (``off`` turns the cache off), else
 ``$XDG_CACHE_HOME/robot_rise``, else ``~/.cache/robot_rise``. Files are written whole (a process
-killed mid-write leaves none); a file that does not read is proven again and replaced; a cache
+killed mid-write leaves at most its own ``*.tmp`` file, never half a proof); a file that does not read is proven again and replaced; a cache
 that cannot be written is warned about once and then done without.
 """
 
@@ -32,6 +33,7 @@ from robot_rise.filter.composed import StartProof
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.proof import scene_digest
 from robot_rise.model import Robot
+from robot_rise.posture import Posture
 from robot_rise.sim.variants import ENSEMBLE
 from robot_rise.trajectory import Trajectory
 
@@ -48,7 +50,7 @@ def cache_directory() -> Path | None:
     """Where start proofs are kept (None: the cache is off)."""
     value = os.environ.get(CACHE_ENV)
     if value is not None:
-        return None if value.strip().lower() in ("", "off", "0", "no") else Path(value).expanduser() / "start_proofs"
+        return None if value.strip().lower() in ("", "off", "0", "no") else Path(value).expanduser().resolve() / "start_proofs"
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "robot_rise" / "start_proofs"
 
@@ -65,14 +67,13 @@ def _source_digest() -> str:
 
 
 def start_proof_key(robot: Robot, scene: str | os.PathLike[str] | None, motion: str, motion_trajectory: Trajectory,
-                    config: FilterConfig) -> str:
-    """The SHA-256 key of a start proof (see the module docstring)."""
+                    start: Posture, config: FilterConfig) -> str:
+    """The SHA-256 key of a start proof (see the module docstring) of ``motion`` played from ``start``."""
     h = hashlib.sha256()
     for part in (START_PROOF_FORMAT, robot.digest(), scene_digest(scene), motion, repr(dataclasses.astuple(config)),
-                 repr([v.to_dict() for v in ENSEMBLE]), mujoco.__version__, _source_digest()):
+                 repr([v.to_dict() for v in ENSEMBLE]), mujoco.__version__, np.__version__, _source_digest()):
         h.update(part.encode())
         h.update(b"\0")
-    start = motion_trajectory.start
     for array in (motion_trajectory.t, motion_trajectory.q, start.root_pos, start.root_quat_wxyz,
                   np.array([start.joints[j] for j in sorted(start.joints)])):
         h.update(np.ascontiguousarray(array, dtype=float).tobytes())
@@ -88,9 +89,11 @@ def _path(key: str, directory: Path | None) -> Path | None:
 def load_start_proof(key: str, *, directory: Path | None = None) -> StartProof | None:
     """The start proof kept under ``key`` (None: none, the cache is off, or the file does not read)."""
     path = _path(key, directory)
-    if path is None or not path.is_file():
+    if path is None:
         return None
     try:
+        if not path.is_file():
+            return None
         obj = json.loads(path.read_text())
         if obj.get("format") != START_PROOF_FORMAT or obj.get("key") != key:
             raise ValueError("another format or key")
