@@ -23,7 +23,10 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
    section 5.3, retargeting), propped on its arms and feet at another lean than the library
    motion, gets its shoulders' pitch offset until its torso leans as the library's did
    (``lean.py``), so it comes onto its feet with its centre of mass over them;
-5. iterate until everything passes or ``max_iterations`` is reached, then say why not.
+5. iterate until everything passes or ``max_iterations`` is reached, then say why not;
+6. once proven on the nominal model, replay it with 1e-6 rad of target noise (``noise.py``) and
+   slow where a noisy replay breaks, then on every model variant (``ensemble.py``) and slow where
+   a variant falls, each a few rounds.
 
 The output trajectory holds the commanded targets (not the plan) and a report proving them: the
 ``Proof``'s entries, then the filter's own (``filter_iterations``, ``filter_history``, and
