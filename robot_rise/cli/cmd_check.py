@@ -6,8 +6,7 @@ import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import (EnsembleReplayer, EnsembleResult, FilterConfig, proven_combined_variants, prove, replay_random_variants,
-                               scene_digest, with_ensemble)
+from robot_rise.filter import EnsembleResult, FilterConfig, check, replay_random_variants, scene_digest
 from robot_rise.validity import ValidityChecker
 
 
@@ -18,10 +17,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=Formatter,
         description="Replays TRAJ from its start posture through the Dynamixel servo model, then reports the\n"
         "standing judge's verdict, peak torque against the torque-speed envelope, balance and contacts;\n"
-        "then replays it on every model variant of the ensemble proof (masses, friction, supply, gains,\n"
-        "latency, ticks, shapes, start). Exit code 0 only if it stands within the limits on the nominal\n"
-        "model and on every variant. --variants N also replays N random variants drawn from the same\n"
-        "ranges and reports the share that stands (the margin, on models it was not proven on).",
+        "replays it 6 times with 1e-6 rad of seeded noise on its targets (the verdict must not hang on\n"
+        "the file's rounding); then replays it on every model variant of the ensemble proof (masses,\n"
+        "friction, supply, gains, latency, ticks, shapes, start). Exit code 0 only if it stands within\n"
+        "the limits on the nominal model, its noisy replays and every variant. --variants N also replays\n"
+        "N random variants drawn from the same ranges and reports the share that stands (the margin, on\n"
+        "models it was not proven on).",
         epilog="examples:\n  robot-rise check out/rise.json --scene flat\n  robot-rise check out/rise.json --variants 50 --seed 1",
     )
     p.add_argument("trajectory", metavar="TRAJ", help="trajectory file (robot-rise/trajectory@1)")
@@ -49,11 +50,10 @@ def run(args: argparse.Namespace) -> int:
         )
     proven_in = tr.report.get("scene")
     other_scene = bool(tr.report.get("scene_digest")) and tr.report.get("scene_digest") != scene_digest(args.scene)
-    # the combined variants its proof replayed are part of the proof: replayed again
-    config = FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble, combined_variants=proven_combined_variants(tr))
-    _, verdict, proof = prove(robot, tr, scene=args.scene, config=config)
-    if config.ensemble:
-        proof = with_ensemble(proof, EnsembleReplayer(robot, args.scene).replay(tr, config=config)[0])
+    # the proof standard: the nominal replay, its noisy replays, the ensemble and the combined
+    # variants its proof replayed (robot_rise.filter.check)
+    config = FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble)
+    proof = check(robot, tr, scene=args.scene, config=config)
     randoms = replay_random_variants(robot, tr, args.variants, args.seed, scene=args.scene, config=config) if args.variants else None
     if args.json:
         print_json({**proof.to_dict(), **({"random_variants": _random_summary(randoms, args.seed)} if randoms else {})})
@@ -61,8 +61,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.trajectory}: {'PROVEN' if proof.proven else 'NOT PROVEN'} in scene {args.scene}")
         if other_scene:
             print(f"  note: the file was proven in scene {proven_in}, not this one (pass --scene {proven_in})")
-        print(f"  {verdict.summary()}")
+        print(f"  {proof.judge}")
         print(f"  duration {proof.duration_s:.2f} s; ground contacts: {', '.join(proof.ground_contacts) or 'none'}")
+        if config.noise_replays:
+            broken = sum(line.startswith("target noise") for line in proof.problems)
+            print(f"  target noise +-{config.noise_rad:g} rad: {config.noise_replays - broken} of {config.noise_replays} noisy replays hold")
         if proof.ensemble:
             print(f"  ensemble: {proof.ensemble_standing} of {len(proof.ensemble)} model variants stand; worst tilt "
                   f"{proof.worst_tilt_deg:.1f} deg, height {100 * proof.worst_height_fraction:.0f} % of stand, "
