@@ -167,7 +167,7 @@ class RiseContext:
         use (``warm_start_proofs`` does all at once) and kept there, then reused."""
         # what a start proof rests on: the margins, noise and hold of the caller's config, the
         # motion's combined variants; not the stretch bounds of a get-up's nominal filter
-        config = dataclasses.replace(config, combined_variants=motion.combined_variants, max_stretch=None, motion_max_stretch=None)
+        config = dataclasses.replace(_joining(config, motion), max_stretch=None, motion_max_stretch=None)
         if (motion.name, config) not in self._start_proofs:
             key = start_proof_key(self.robot, self.scene, motion.name, motion.trajectory, motion.start, config)
             kept = load_start_proof(key)
@@ -405,8 +405,7 @@ def _rise_candidates(
         motion = library.get(conn.motion)
         # a momentum motion stands only near its own timing: slowing it further is wasted replays
         # and one the ensemble's one-at-a-time differences miss is proven on combined ones too
-        motion_config = dataclasses.replace(filter_config, motion_max_stretch=motion.max_stretch,
-                                            combined_variants=motion.combined_variants)
+        motion_config = dataclasses.replace(_joining(filter_config, motion), motion_max_stretch=motion.max_stretch)
         if composed:
             quick, why = _composed_candidate(robot, planned.trajectory, motion, conn, start, scene, motion_config, context)
             t2 = time.monotonic()
@@ -469,6 +468,13 @@ def _rise_candidates(
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _joining(config: FilterConfig, motion: Motion) -> FilterConfig:
+    """``config`` for a proof that joins ``motion``: the combined variants it asks for, and its
+    noisy replays where it asks for more than ``config`` (none where ``config`` has none)."""
+    noise = max(config.noise_replays, motion.noise_replays) if config.noise_replays > 0 else 0
+    return dataclasses.replace(config, combined_variants=motion.combined_variants, noise_replays=noise)
 
 
 def _join_report(plan: Trajectory, conn: Connection) -> dict[str, Any]:

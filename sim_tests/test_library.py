@@ -430,6 +430,25 @@ def test_a_motion_fragile_from_random_starts_carries_its_combined_variants_from_
         read_strategy(tmp_path / "s.json")
 
 
+def test_a_knife_edge_landing_carries_its_noisy_replays_from_strategy_to_library(tmp_path: Path) -> None:
+    for name in ("supine_roll_elbow_knees", "supine_situp_rock_robust"):
+        assert next(s for s in load_strategies() if s.name == name).noise_replays == 12
+        assert LIBRARY.get(name).noise_replays == 12
+    assert LIBRARY.get("prone_elbow_knees_quick").noise_replays == 0  # the filter's own
+    lib = tmp_path / "lib"
+    shutil.copytree(default_library_dir(), lib)
+    index = json.loads((lib / "index.json").read_text())
+    for bad in (-1, 2.5, True, 25):
+        index["motions"][0]["noise_replays"] = bad
+        (lib / "index.json").write_text(json.dumps(index))
+        with pytest.raises(FormatError, match="noise_replays .* must be a whole number in 0..24"):
+            load_library(lib)
+    src = json.loads((configs_dir() / "strategies" / "supine_roll_elbow_knees.json").read_text())
+    (tmp_path / "s.json").write_text(json.dumps({**src, "noise_replays": "12"}))
+    with pytest.raises(FormatError, match="noise_replays '12' must be a whole number"):
+        read_strategy(tmp_path / "s.json")
+
+
 def test_a_partial_build_counts_the_motions_it_kept_when_it_names_the_kinds_without_one() -> None:
     from robot_rise.authoring.build import BuildReport
 

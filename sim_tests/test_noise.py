@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from robot_rise.filter import NOISE_CHECK_KEY, FilterConfig, check, dynamics_filter, noise_check, noisy_trajectory, prove
+from robot_rise.filter import (NOISE_CHECK_KEY, FilterConfig, check, dynamics_filter, noise_check, noisy_trajectory, prove,
+                               proven_noise_replays)
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player
 from robot_rise.trajectory import Trajectory
@@ -69,3 +70,12 @@ def test_a_noisy_replay_that_ends_elsewhere_than_the_noiseless_one_does_not_hold
     checked, _ = noise_check(tr, other, player, config=FilterConfig(noise_replays=1))
     assert not checked.holds
     assert "ends elsewhere" in checked.failures()[0] and checked.replays[0].joint_gap_rad > 1.0
+
+
+def test_a_replay_of_a_proof_runs_as_many_noisy_replays_as_the_proof_did(robot):
+    # a motion may ask for more (Motion.noise_replays): check of its output replays them all
+    result = dynamics_filter(robot, _squat(robot, 3.0), config=FilterConfig(ensemble=False, noise_replays=9))
+    assert result.proven and result.trajectory.report[NOISE_CHECK_KEY]["replays"] == 9
+    assert proven_noise_replays(result.trajectory, 6) == 9 and proven_noise_replays(result.trajectory, 12) == 12
+    assert proven_noise_replays(result.trajectory, 0) == 0  # no noise check asked: none
+    assert proven_noise_replays(_squat(robot, 3.0), 6) == 6  # a file proven before the noise check

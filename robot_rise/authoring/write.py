@@ -210,6 +210,7 @@ def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -
                 clamp_lead=s.clamp_lead,
                 max_stretch=s.max_stretch,
                 combined_variants=s.combined_variants,
+                noise_replays=s.noise_replays,
             )
         )
     return tuple(out)
@@ -376,6 +377,7 @@ def author_library(
             "duration_s": round(tr.duration_s, 3),
             **({"max_stretch": spec.max_stretch} if spec.max_stretch is not None else {}),
             **({"combined_variants": spec.combined_variants} if spec.combined_variants else {}),
+            **({"noise_replays": spec.noise_replays} if spec.noise_replays else {}),
         }
         entries.append(row)
         old_rows[spec.name] = row

@@ -68,6 +68,7 @@ from robot_rise.filter.ensemble import (
     EnsembleResult,
     check,
     proven_combined_variants,
+    proven_noise_replays,
     replay_random_variants,
     with_ensemble,
 )
@@ -125,6 +126,7 @@ __all__ = [
     "VariantVerdict",
     "replay_random_variants",
     "proven_combined_variants",
+    "proven_noise_replays",
     "COMBINED_VARIANTS_KEY",
     "with_ensemble",
     "prove_composed",

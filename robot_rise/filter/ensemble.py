@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.noise import noise_check, with_noise
+from robot_rise.filter.noise import NOISE_CHECK_KEY, noise_check, with_noise
 from robot_rise.filter.proof import Proof, VariantVerdict, prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
@@ -33,7 +33,7 @@ from robot_rise.sim.variants import ENSEMBLE, ModelVariant, combined_variants, r
 from robot_rise.trajectory import Trajectory
 
 __all__ = ["COMBINED_VARIANTS_KEY", "EnsembleResult", "EnsembleReplayer", "with_ensemble", "check", "replay_random_variants",
-           "proven_combined_variants"]
+           "proven_combined_variants", "proven_noise_replays"]
 
 COMBINED_VARIANTS_KEY = "combined_variants"  # the trajectory report's entry: combined variants its proof replayed
 
@@ -140,6 +140,14 @@ def proven_combined_variants(trajectory: Trajectory) -> int:
     return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else 0
 
 
+def proven_noise_replays(trajectory: Trajectory, replays: int) -> int:
+    """How many noisy replays a replay of ``trajectory``'s proof runs: ``replays``, or as many as
+    its proof ran where that is more (a motion may ask for more: ``Motion.noise_replays``); 0 stays 0."""
+    entry = trajectory.report.get(NOISE_CHECK_KEY)
+    n = entry.get("replays") if isinstance(entry, dict) else None
+    return max(replays, n) if replays > 0 and isinstance(n, int) and not isinstance(n, bool) else replays
+
+
 def with_ensemble(proof: Proof, result: EnsembleResult) -> Proof:
     """``proof`` with the ensemble's verdicts: proven only if it was and every variant stands."""
     failures = result.failures()
@@ -166,7 +174,8 @@ def check(
     """
     if scene is None:
         scene = str(trajectory.report.get("scene") or "flat")
-    config = dataclasses.replace(config, combined_variants=proven_combined_variants(trajectory))
+    config = dataclasses.replace(config, combined_variants=proven_combined_variants(trajectory),
+                                 noise_replays=proven_noise_replays(trajectory, config.noise_replays))
     player = Player(robot, scene)
     rec, _, proof = prove(robot, trajectory, scene=scene, config=config, player=player)
     if config.noise_replays > 0:

@@ -18,7 +18,7 @@ from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, read_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
 
-__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
+__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "MAX_NOISE_REPLAYS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
 
 LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
@@ -38,6 +38,7 @@ def robot_library_dir(robot: Robot) -> Path:
     return shipped if not own.is_dir() and shipped.is_dir() else own
 
 MAX_COMBINED_VARIANTS = 16  # combined variants a motion's proofs may ask for: each is one more replay of every proof
+MAX_NOISE_REPLAYS = 24  # noisy replays a motion's proofs may ask for (each ~0.1 s of CPU per proof)
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,8 @@ class Motion:
             no bound of its own; ``robot_rise.library.strategies.KeyframedMotion.max_stretch``).
         combined_variants: combined random variants its proofs replay besides the ensemble
             (``robot_rise.library.strategies.KeyframedMotion.combined_variants``).
+        noise_replays: noisy replays its proofs run when more than the filter's (0: the filter's;
+            ``robot_rise.library.strategies.KeyframedMotion.noise_replays``).
     """
 
     name: str
@@ -65,6 +68,7 @@ class Motion:
     connect_until_s: float
     max_stretch: float | None = None
     combined_variants: int = 0
+    noise_replays: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -140,6 +144,9 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
         combined = row.get("combined_variants", 0)
         if not (isinstance(combined, int) and not isinstance(combined, bool) and 0 <= combined <= MAX_COMBINED_VARIANTS):
             raise FormatError(f"{where}: combined_variants {combined!r} must be a whole number in 0..{MAX_COMBINED_VARIANTS}")
+        noisy = row.get("noise_replays", 0)
+        if not (isinstance(noisy, int) and not isinstance(noisy, bool) and 0 <= noisy <= MAX_NOISE_REPLAYS):
+            raise FormatError(f"{where}: noise_replays {noisy!r} must be a whole number in 0..{MAX_NOISE_REPLAYS}")
         motions.append(Motion(name, str(row["lying"]), str(row.get("strategy", "")), tr, start, cut,
-                              None if stretch is None else float(stretch), combined))
+                              None if stretch is None else float(stretch), combined, noisy))
     return MotionLibrary(str(obj.get("robot", robot_name)), root, tuple(motions))
