@@ -13,14 +13,13 @@ margin, every ensemble variant standing: ``robot_rise.filter.check``):
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from robot_rise.constants import TARGET_NOISE_RAD
-from robot_rise.filter import FilterConfig, check, replay_random_variants
+from robot_rise.filter import FilterConfig, check, noisy_trajectory, replay_random_variants
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
 
@@ -76,7 +75,7 @@ def margins_of(
     reasons: list[str] = []
     rng = np.random.default_rng(seed)
     for _ in range(noise_trials):
-        noisy = dataclasses.replace(trajectory, q=trajectory.q + rng.uniform(-noise_rad, noise_rad, trajectory.q.shape))
+        noisy = noisy_trajectory(trajectory, rng, noise_rad)
         replay = check(robot, noisy, scene=scene, config=config)
         if replay.proven != proven:
             flips += 1
