@@ -4,6 +4,11 @@ The strategies are independent, so they are authored in parallel (one process pe
 into its own scratch directory); the passing motions are then moved into the library directory
 and the index written once, in strategy order, atomically. The report says per lying kind which
 motions were proven and why the others were not, and names a lying kind with no proven motion.
+
+Turn-over strategies (``"lands"``) come second, and only for a lying kind the get-ups left without
+a motion: each is followed by the robot's proven get-ups of the kind it lands in, quickest first
+(:func:`robot_rise.authoring.turn_over.author_turn_over`, started when the body lies at rest there:
+:func:`robot_rise.authoring.turn_over.landing`), and the first proven is written.
 """
 
 from __future__ import annotations
@@ -16,10 +21,13 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from robot_rise.authoring.robustness import robustness_players
+from robot_rise.authoring.turn_over import author_turn_over, landing
 from robot_rise.authoring.write import author_library
 from robot_rise.fileio import write_text_atomic
 from robot_rise.library import LIBRARY_FORMAT, LYING_KINDS, Strategy, load_strategies
 from robot_rise.model import Robot, load_robot
+from robot_rise.trajectory import read_trajectory
 
 __all__ = ["BuildReport", "build_library", "BUILD_REPORT_FORMAT"]
 
@@ -38,6 +46,7 @@ class BuildReport:
     failed: dict[str, str] = field(default_factory=dict)
     lying: dict[str, str] = field(default_factory=dict)  # strategy name -> lying kind
     kept: tuple[dict, ...] = ()
+    skipped: dict[str, str] = field(default_factory=dict)  # turn-overs not needed: their lying kind has a motion
 
     def kinds_without_motion(self) -> tuple[str, ...]:
         """Lying kinds the library (written and kept motions) has no motion for."""
@@ -51,6 +60,7 @@ class BuildReport:
             "written": list(self.written),
             "kept": list(self.kept),
             "failed": [{"name": n, "lying": self.lying.get(n, ""), "reason": r} for n, r in self.failed.items()],
+            "skipped": [{"name": n, "lying": self.lying.get(n, ""), "reason": r} for n, r in self.skipped.items()],
             "kinds_without_motion": list(self.kinds_without_motion()),
         }
 
@@ -65,6 +75,27 @@ def _author_one(robot_dir: str, name: str, scratch: str) -> tuple[list[dict], di
     return rows, failures
 
 
+def _author_turn_over(robot_dir: str, turn: str, get_ups: list[tuple[dict, str]], scratch: str,
+                      strategies: tuple[Strategy, ...] | None = None) -> tuple[list[dict], dict[str, str]]:
+    """The turn-over ``turn`` followed by each of ``get_ups`` ((index row, trajectory file),
+    quickest first) until one is written (:func:`robot_rise.authoring.turn_over.author_turn_over`)."""
+    try:
+        robot = load_robot(robot_dir)
+        turn_over = next(s for s in (strategies if strategies is not None else load_strategies()) if s.name == turn)
+        landed = landing(robot, turn_over, robustness_players(robot))
+        if landed.landed_s is None:
+            return [], {turn: f"does not land {turn_over.lands}: {landed.reason}"}
+        reasons = []
+        for row, path in get_ups:
+            written, why = author_turn_over(Path(scratch), robot, turn_over, row, read_trajectory(path), landed.landed_s)
+            if written is not None:
+                return [written], {}
+            reasons.append(f"then {row['name']}: {why}")
+        return [], {turn: f"lands {turn_over.lands} at rest by {landed.landed_s:.2f} s; " + "; ".join(reasons)}
+    except Exception as e:  # as _author_one: this turn-over's failure, not the build's
+        return [], {turn: f"crashed: {type(e).__name__}: {e}"}
+
+
 def build_library(
     robot: Robot, out_dir: Path | None = None, *, jobs: int = 1, names: list[str] | None = None, strategies: tuple[Strategy, ...] | None = None
 ) -> BuildReport:
@@ -77,15 +108,26 @@ def build_library(
         names: only these strategies (default: all).
         strategies: the strategies (default: the shipped ``configs/strategies``).
     """
-    chosen = [s for s in (strategies if strategies is not None else load_strategies()) if not names or s.name in names]
+    everything = strategies if strategies is not None else load_strategies()
+    chosen = [s for s in everything if not names or s.name in names]
+    get_ups = [s for s in chosen if s.lands is None]
+    turn_overs = [s for s in chosen if s.lands is not None]
     out = Path(out_dir) if out_dir is not None else robot.directory / robot.library
     out.mkdir(parents=True, exist_ok=True)
-    rows: dict[str, dict] = {}
+    index_path = out / "index.json"
+    before: list[dict] = []
+    if index_path.exists() and names:
+        try:
+            before = list(json.loads(index_path.read_text()).get("motions", []))
+        except (ValueError, KeyError):
+            before = []
+    rows: dict[str, dict] = {}  # strategy name -> its row (a turn-over's row names the turn-over and the get-up)
     failed: dict[str, str] = {}
+    skipped: dict[str, str] = {}
     with tempfile.TemporaryDirectory(prefix=".build.", dir=out) as scratch_root:
         scratch = {s.name: Path(scratch_root) / s.name for s in chosen}
         if strategies is not None or jobs <= 1:
-            for s in chosen:
+            for s in get_ups:
                 f: dict[str, str] = {}
                 for r in author_library(scratch[s.name], robot, names=[s.name], strategies=tuple(chosen), failures=f):
                     rows[r["name"]] = r
@@ -93,25 +135,45 @@ def build_library(
                 log.info("%s: %s", s.name, "written" if s.name in rows else f"failed: {f.get(s.name)}")
         else:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
-                futures = {s.name: pool.submit(_author_one, str(robot.directory), s.name, str(scratch[s.name])) for s in chosen}
+                futures = {s.name: pool.submit(_author_one, str(robot.directory), s.name, str(scratch[s.name])) for s in get_ups}
                 for name, fut in futures.items():
                     got, f = fut.result()
                     rows |= {r["name"]: r for r in got}
                     failed |= f
+        rebuilt = {s.name for s in chosen}
+        kept = [r for r in before if r["name"] not in rebuilt and r.get("turn_over") not in rebuilt]
+        have = [*rows.values(), *kept]
+        tasks: dict[str, list[tuple[dict, str]]] = {}
+        for turn in turn_overs:
+            own = sorted(r["name"] for r in have if r["lying"] == turn.lying)
+            known = {s.name for s in everything if s.lands is None}
+            followers = sorted((r for r in have if r["lying"] == turn.lands and r["name"] in known), key=lambda r: float(r["duration_s"]))
+            if own:
+                skipped[turn.name] = f"not needed: lying {turn.lying} has {', '.join(own)}"
+            elif not followers:
+                failed[turn.name] = f"lands {turn.lands}, and the robot has no proven {turn.lands} get-up to follow it"
+            else:
+                # a get-up of this build is still in its scratch directory, a kept one in the library's
+                tasks[turn.name] = [(r, str((scratch[r["name"]] if r["name"] in rows else out) / r["trajectory"])) for r in followers]
+        if strategies is not None or jobs <= 1:
+            done = {t: _author_turn_over(str(robot.directory), t, g, str(scratch[t]), tuple(everything)) for t, g in tasks.items()}
+        else:
+            with ProcessPoolExecutor(max_workers=jobs) as pool:
+                futures = {t: pool.submit(_author_turn_over, str(robot.directory), t, g, str(scratch[t])) for t, g in tasks.items()}
+                done = {t: fut.result() for t, fut in futures.items()}
+        for turn, (got, f) in done.items():
+            if got:
+                rows[turn] = got[0]
+            failed |= f
+            log.info("%s: %s", turn, f"written as {got[0]['name']}" if got else f"failed: {f.get(turn)}")
         for name, row in rows.items():
             for key in ("trajectory", "start"):
                 shutil.move(str(scratch[name] / row[key]), str(out / row[key]))
-    index_path = out / "index.json"
-    old = []
-    if index_path.exists() and names:
-        try:
-            old = [r for r in json.loads(index_path.read_text()).get("motions", []) if r["name"] not in rows and r["name"] not in failed]
-        except (ValueError, KeyError):
-            old = []
+    old = kept
     written = tuple(rows[s.name] for s in chosen if s.name in rows)
     index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [*old, *written]}
     write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     report = BuildReport(robot.name, out, written, {s.name: failed[s.name] for s in chosen if s.name in failed}, {s.name: s.lying for s in chosen},
-                         tuple(old))
+                         tuple(old), {s.name: skipped[s.name] for s in chosen if s.name in skipped})
     write_text_atomic(out / "build_report.json", json.dumps(report.to_dict(), indent=1) + "\n")
     return report

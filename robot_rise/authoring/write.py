@@ -52,10 +52,12 @@ from robot_rise.library import LIBRARY_FORMAT, Strategy, joint_keyframes, load_l
 from robot_rise.model import Robot, load_robot
 from robot_rise.posture import LIMIT_CLAMP_TOLERANCE_RAD, clamp_to_limits, posture_from_dict, write_posture
 from robot_rise.sampling import classify_lying
-from robot_rise.sim.standing import judge
+from robot_rise.sim.player import Player, Recording
+from robot_rise.sim.standing import StandVerdict, judge
+from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 from robot_rise.trajectory import Trajectory, trajectory_from_dict, trajectory_to_dict, write_trajectory
 
-__all__ = ["author_library", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
+__all__ = ["author_library", "prove_for_library", "write_motion", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
 
 log = logging.getLogger(__name__)
 
@@ -193,9 +195,10 @@ def _clamp_rows(obj: dict, tr: Trajectory, robot: Robot, *, where: str) -> None:
 
 
 def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -> tuple[MotionSpec, ...]:
-    """The strategies (default: the shipped ones, ``configs/strategies``) as motions of ``robot``: role values mapped to its joints."""
+    """The strategies (default: the shipped get-ups, ``configs/strategies`` but its turn-overs) as
+    motions of ``robot``: role values mapped to its joints."""
     out = []
-    for s in strategies if strategies is not None else load_strategies():
+    for s in strategies if strategies is not None else tuple(s for s in load_strategies() if s.lands is None):
         lying, keyframes = joint_keyframes(s, robot)
         out.append(
             MotionSpec(
@@ -214,6 +217,70 @@ def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -
             )
         )
     return tuple(out)
+
+
+def prove_for_library(robot: Robot, tr: Trajectory, start: Posture, players: list[Player], *, clamp_lead: bool, connect_until_s: float,
+                      report: dict, touching_ok: bool = False) -> tuple[Trajectory, StandVerdict, float] | str:
+    """A library motion's trial: its goals clamped into the envelope (``clamp_lead``), standing
+    on every robustness player within ``TORQUE_BOUND`` without self contact (``touching_ok``:
+    without self contact deeper than the proof's tolerance), then proven on the ensemble
+    (:func:`with_proof`, rows rounded as the file writes them).
+
+    Returns:
+        (the trajectory with its report, the nominal verdict, the end of its lying-to-sitting
+        phase [s] after conforming), or why it is not a library motion.
+    """
+    if clamp_lead:
+        tr = clamp_goal_lead(robot, tr, players, spread_starts=arrival_spread_starts(robot, start))
+    recs = [p.play(tr) for p in players]
+    verdicts = [judge(r) for r in recs]
+    collides = [bool(np.max(r.self_penetration_m, initial=0.0) > DEFAULT_CONTACT_TOLERANCE_M) if touching_ok else v.self_collision
+                for r, v in zip(recs, verdicts)]
+    bad = [f"{i}: {v.summary()}" + (_deepest_self_contact(r) if c else "")
+           for i, (r, v, c) in enumerate(zip(recs, verdicts, collides)) if not v.standing or c or v.peak_envelope_ratio > TORQUE_BOUND]
+    if bad:
+        return f"{tr.duration_s:.2f} s motion fails on the robustness players: " + "; ".join(bad)
+    rec, v = recs[0], verdicts[0]
+    # simulated root pose at every row (rows at ROW_HZ, recording at 100 Hz: interpolate)
+    root = np.stack([np.interp(tr.t, np.concatenate([[0.0], rec.t]), np.concatenate([[start.root_pos[i] if i < 3 else start.root_quat_wxyz[i - 3]], rec.root_pose[:, i]])) for i in range(7)], axis=-1)
+    root[:, 3:] /= np.linalg.norm(root[:, 3:], axis=1, keepdims=True)
+    report = {
+        **report,
+        "duration_s": tr.duration_s,
+        "standing": v.standing,
+        "verdict": v.summary(),
+        "peak_envelope_ratio": v.peak_envelope_ratio,
+        "peak_envelope_ratio_corners": max(x.peak_envelope_ratio for x in verdicts),
+        "min_zmp_margin_m": v.min_zmp_margin_m,
+        "self_collision": v.self_collision,
+        "connect_until_s": connect_until_s,
+        "robot_digest": robot.digest(),
+    }
+    as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
+    tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
+    if tr.t is not as_written.t:  # conformed: slower segments, same rows; the phase ends where its row went (as reprove_library)
+        connect_until_s = round(float(np.interp(connect_until_s, as_written.t, tr.t)), 6)
+        tr = tr.with_report(connect_until_s=connect_until_s)
+    if not proof.proven:
+        return f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems)
+    return tr, v, connect_until_s
+
+
+def _deepest_self_contact(rec: Recording) -> str:
+    k = int(np.argmax(rec.self_penetration_m))
+    return (f" ({1000 * float(rec.self_penetration_m[k]):.1f} mm deep at {rec.t[k]:.2f} s: "
+            + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3]) + ")")
+
+
+def write_motion(out_dir: Path, name: str, tr: Trajectory, start: Posture) -> None:
+    """A motion's trajectory and start files, each complete or not there (written aside, then renamed)."""
+    tmp_dir = out_dir / ".authoring"
+    tmp_dir.mkdir(exist_ok=True)
+    write_trajectory(tmp_dir / f"{name}.json", tr)
+    write_posture(tmp_dir / f"{name}.start.json", start)
+    (tmp_dir / f"{name}.start.json").replace(out_dir / f"{name}.start.json")
+    (tmp_dir / f"{name}.json").replace(out_dir / f"{name}.json")
+    tmp_dir.rmdir()
 
 
 def author_library(
@@ -256,7 +323,8 @@ def author_library(
         except (ValueError, KeyError):
             old_rows = {}
     entries = []
-    chosen = strategies if strategies is not None else load_strategies()
+    # turn-overs end lying, not standing: build_library follows each with a get-up (author_turn_over)
+    chosen = tuple(s for s in (strategies if strategies is not None else load_strategies()) if s.lands is None)
     specs = motion_specs(robot, chosen)
     failed = failures if failures is not None else {}
 
@@ -316,57 +384,19 @@ def author_library(
                 kfs = spec.keyframes
                 connect_until_s = kfs[spec.connect_keyframe].t_s
             tr = build_trajectory(robot, start, kfs)
-            if spec.clamp_lead:
-                tr = clamp_goal_lead(robot, tr, players, spread_starts=arrival_spread_starts(robot, start))
-            verdicts = [judge(p.play(tr)) for p in players]
-            bad = [f"{i}: {v.summary()}" for i, v in enumerate(verdicts) if not v.standing or v.self_collision or v.peak_envelope_ratio > TORQUE_BOUND]
-            if bad:
-                reasons.append(f"{tr.duration_s:.2f} s motion fails on the robustness players: " + "; ".join(bad))
+            extra = {"strategy": spec.strategy, "lying": spec.lying, "keyframe_times_s": [k.t_s for k in kfs], **({"adaptation": adaptation} if adaptation else {})}
+            got = prove_for_library(robot, tr, start, players, clamp_lead=spec.clamp_lead, connect_until_s=connect_until_s, report=extra)
+            if isinstance(got, str):
+                reasons.append(got)
                 continue
-            rec = player.play(tr)
-            v = judge(rec)
-            # simulated root pose at every row (rows at ROW_HZ, recording at 100 Hz: interpolate)
-            root = np.stack([np.interp(tr.t, np.concatenate([[0.0], rec.t]), np.concatenate([[start.root_pos[i] if i < 3 else start.root_quat_wxyz[i - 3]], rec.root_pose[:, i]])) for i in range(7)], axis=-1)
-            root[:, 3:] /= np.linalg.norm(root[:, 3:], axis=1, keepdims=True)
-            report = {
-                "strategy": spec.strategy,
-                "lying": spec.lying,
-                "duration_s": tr.duration_s,
-                "standing": v.standing,
-                "verdict": v.summary(),
-                "peak_envelope_ratio": v.peak_envelope_ratio,
-                "peak_envelope_ratio_corners": max(x.peak_envelope_ratio for x in verdicts),
-                "min_zmp_margin_m": v.min_zmp_margin_m,
-                "self_collision": v.self_collision,
-                "connect_until_s": connect_until_s,
-                "keyframe_times_s": [k.t_s for k in kfs],
-                "robot_digest": robot.digest(),
-            }
-            if adaptation:
-                report["adaptation"] = adaptation
-            as_written = trajectory_from_dict(trajectory_to_dict(Trajectory(tr.robot, tr.joint_names, tr.t, tr.q, tr.start, report, root)))
-            tr, proof = with_proof(robot, as_written)  # the proof is of the file's rows (rounded as written)
-            if tr.t is not as_written.t:  # conformed: slower segments, same rows; the phase ends where its row went (as reprove_library)
-                connect_until_s = round(float(np.interp(connect_until_s, as_written.t, tr.t)), 6)
-                report["connect_until_s"] = connect_until_s
-                tr = tr.with_report(connect_until_s=connect_until_s)
-            if not proof.proven:
-                reasons.append(f"{tr.duration_s:.2f} s motion not proven: " + "; ".join(proof.problems))
-                continue
-            done = (tr, v, report, connect_until_s)
+            done = got
             break
         if done is None:
             fail(spec.name, " / slower: ".join(reasons))
             continue
-        tr, v, report, connect_until_s = done
-        tmp_dir = out_dir / ".authoring"
-        tmp_dir.mkdir(exist_ok=True)
-        write_trajectory(tmp_dir / f"{spec.name}.json", tr)
-        write_posture(tmp_dir / f"{spec.name}.start.json", start)
-        (tmp_dir / f"{spec.name}.start.json").replace(out_dir / f"{spec.name}.start.json")
-        (tmp_dir / f"{spec.name}.json").replace(out_dir / f"{spec.name}.json")
-        tmp_dir.rmdir()
-        log.info("%s: %.2f s; %s (corners: peak %.2f)", spec.name, tr.duration_s, v.summary(), report["peak_envelope_ratio_corners"])
+        tr, v, connect_until_s = done
+        write_motion(out_dir, spec.name, tr, start)
+        log.info("%s: %.2f s; %s (corners: peak %.2f)", spec.name, tr.duration_s, v.summary(), tr.report["peak_envelope_ratio_corners"])
         row = {
             "name": spec.name,
             "lying": spec.lying,

@@ -61,7 +61,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "written in joint roles). Each strategy is mapped onto the robot's joints by the [roles] of its robot.toml, its "
         "lying posture settled, its timing found in MuJoCo against the servos' envelope, verified on the friction/mass "
         "corners and proven on the ensemble; only proven motions are written. The report says which strategies work "
-        "for which lying kind and why the others failed (also written as build_report.json).",
+        "for which lying kind and why the others failed (also written as build_report.json). A "
+        "turn-over strategy (one that ends lying, e.g. a roll onto the front) is built only for a lying kind left without a "
+        "motion, followed by the robot's own get-up from where it lands.",
         epilog="Example: robot-rise library build --robot robots/wolfgang --jobs 2",
     )
     bu.add_argument("--out", type=Path, default=None, help="library directory (default: the robot directory's library, robot.toml 'library')")
@@ -164,11 +166,13 @@ def _build(args: argparse.Namespace) -> int:
         print(f"  proven   {row['lying']:7s} {row['name']:26s} {row['duration_s']:6.2f} s")
     for name, reason in report.failed.items():
         print(f"  failed   {report.lying.get(name, ''):7s} {name:26s} {reason}")
+    for name, reason in report.skipped.items():
+        print(f"  skipped  {report.lying.get(name, ''):7s} {name:26s} {reason}")
     for row in report.kept:
         print(f"  kept     {row.get('lying', ''):7s} {row.get('name', ''):26s} (not rebuilt)")
     for kind in report.kinds_without_motion():
         print(f"  no proven motion for lying {kind}: rise from {kind} postures will fail on this robot")
-    return EXIT_OK if report.written else EXIT_FAILURE
+    return EXIT_OK if report.written or not report.failed else EXIT_FAILURE
 
 
 def _prove(args: argparse.Namespace) -> int:

@@ -9,6 +9,12 @@ a robot (:func:`joint_keyframes`), then times, proves and writes them.
 
 A role the robot lacks is skipped (Bez1 has no shoulder roll); joints with no role (``extra``)
 hold their standing angle.
+
+A *turn-over* strategy (``"lands": "prone"``) is not a get-up: its keyframes turn the body over
+and leave it lying in another kind (a roll off the back, a tip off a side). ``robot-rise library
+build`` uses one only where a robot has no proven motion for its lying kind, followed by a get-up
+the robot has for the kind it lands in (``robot_rise.authoring.turn_over``): what one body
+does from its back, another may only do from its front.
 """
 
 from __future__ import annotations
@@ -107,6 +113,7 @@ class Strategy(KeyframedMotion[RoleKeyframe]):
 
     description: str
     lying_roles: Mapping[str, float]
+    lands: str | None = None  # a turn-over: the lying kind its keyframes leave the body in (not a get-up)
 
 
 def default_strategies_dir() -> Path:
@@ -164,6 +171,9 @@ def read_strategy(path: str | os.PathLike[str]) -> Strategy:
         noisy = obj.get("noise_replays", 0)
         if not (isinstance(noisy, int) and not isinstance(noisy, bool) and 0 <= noisy <= MAX_NOISE_REPLAYS):
             raise FormatError(f"{p}: noise_replays {noisy!r} must be a whole number in 0..{MAX_NOISE_REPLAYS}")
+        lands = obj.get("lands")
+        if lands is not None and (lands not in LYING_KINDS or lands == lying):
+            raise FormatError(f"{p}: lands {lands!r} must be a lying kind other than {lying!r} ({', '.join(LYING_KINDS)})")
         return Strategy(
             name=str(obj.get("name", p.stem)),
             lying=lying,
@@ -177,6 +187,7 @@ def read_strategy(path: str | os.PathLike[str]) -> Strategy:
             max_stretch=max_stretch,
             combined_variants=combined,
             noise_replays=noisy,
+            lands=lands,
         )
     except (KeyError, TypeError, ValueError) as e:
         raise FormatError(f"{p}: malformed strategy: missing or bad {e}") from e

@@ -1,0 +1,159 @@
+"""Turn-over strategies on a robot: where and when the turn leaves the body, and the turn followed by a proven get-up as one motion.
+
+A turn-over (``"lands"`` in its strategy file) ends lying, not standing, so it is never judged
+as a get-up alone. ``robot-rise library build`` uses one where a robot has no proven motion for
+its lying kind (:func:`robot_rise.authoring.build.build_library`):
+
+1. :func:`landing` -- when the body lies at rest, for good, in the kind it lands in, on every
+   robustness player: a heavier body with slower servos (Wolfgang-OP: 6.1 kg, joints saturating
+   at ~4.5 rad/s) lands later than the body the keyframes were written on.
+2. :func:`author_turn_over` -- the turn, held until it landed, a planned path from where it lies
+   to a proven get-up's start, then that get-up's rows as proven on this robot; judged, proven
+   and written as one library motion.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from robot_rise.authoring.goal_lead import clamp_goal_lead
+from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
+from robot_rise.authoring.lying import settle
+from robot_rise.authoring.robustness import robustness_players
+from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, write_motion
+from robot_rise.errors import PostureError
+from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, join_with_blend
+from robot_rise.library import Strategy
+from robot_rise.model import Robot
+from robot_rise.placement import place_near
+from robot_rise.planning.problem import PlanningProblem
+from robot_rise.planning.to_trajectory import plan_trajectory
+from robot_rise.posture import Posture, clamp_to_limits
+from robot_rise.sampling import classify_lying
+from robot_rise.sim.player import Player
+from robot_rise.sim.standing import SETTLED_JOINT_SPEED_RAD_S, SETTLED_ROOT_RATE_RAD_S, SETTLED_ROOT_SPEED_M_S
+from robot_rise.trajectory import Trajectory
+from robot_rise.validity import ValidityChecker
+
+__all__ = ["LANDING_WAIT_S", "LANDED_MARGIN_S", "TURN_OVER_PLAN_BUDGET_S", "TURN_OVER_STEP_S", "Landing", "landing", "author_turn_over"]
+
+log = logging.getLogger(__name__)
+
+LANDING_WAIT_S = 3.0  # the turn-over's last goals are held this long for the body to come to rest [s]
+LANDED_MARGIN_S = 0.1  # the get-up that follows starts this long after the slowest player's landing [s]
+TURN_OVER_PLAN_BUDGET_S = 30.0  # planning budget from where the turn-over lands to the get-up's start [s]
+TURN_OVER_STEP_S = 0.1  # the turn's last goals to the landed joints the path starts from (the servos' load error) [s]
+
+
+@dataclass(frozen=True)
+class Landing:
+    """Where a turn-over leaves the robot.
+
+    Attributes:
+        landed_s: when the body lies at rest in the strategy's ``lands`` kind on every player,
+            plus ``LANDED_MARGIN_S`` [s]; None where it does not (``reason`` says why).
+        per_player_s: each player's landing time [s], up to the first player where it did not land.
+        reason: why it does not land (empty when it does).
+    """
+
+    landed_s: float | None
+    per_player_s: tuple[float, ...]
+    reason: str = ""
+
+
+def _settled(robot: Robot, spec: MotionSpec) -> Posture:
+    return clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
+
+
+def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
+    """Play the turn-over from its settled lying posture on each player,
+    its last goals held for ``LANDING_WAIT_S``, and find when the body lies at rest, for good, in
+    the kind it lands in.
+
+    Raises:
+        ValueError: ``turn`` is not a turn-over.
+    """
+    if turn.lands is None:
+        raise ValueError(f"{turn.name} is not a turn-over (no 'lands')")
+    spec = motion_specs(robot, (turn,))[0]
+    start = _settled(robot, spec)
+    if classify_lying(start.root_quat_wxyz) != turn.lying:
+        return Landing(None, (), f"its lying posture settles {classify_lying(start.root_quat_wxyz)}, not {turn.lying}")
+    end = spec.keyframes[-1].t_s
+    tr = build_trajectory(robot, start, (*spec.keyframes, Keyframe(end + LANDING_WAIT_S, {})))
+    times: list[float] = []
+    for i, player in enumerate(players):
+        rec = player.play(tr, hold_s=0.0)
+        kinds = np.array([classify_lying(q) for q in rec.root_pose[:, 3:]])
+        still = ((np.linalg.norm(rec.root_vel[:, :3], axis=1) < SETTLED_ROOT_SPEED_M_S)
+                 & (np.linalg.norm(rec.root_vel[:, 3:], axis=1) < SETTLED_ROOT_RATE_RAD_S)
+                 & (np.abs(rec.qd).max(axis=1) < SETTLED_JOINT_SPEED_RAD_S))
+        landed = (kinds == turn.lands) & still
+        if not landed[-1]:
+            return Landing(None, tuple(times), f"player {i}: ends lying {kinds[-1]}{'' if still[-1] else ', still moving'}, "
+                                                f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {turn.lands}")
+        first_for_good = int(np.flatnonzero(~landed)[-1]) + 1 if not landed.all() else 0
+        times.append(max(float(rec.t[first_for_good]), end))
+    return Landing(max(times) + LANDED_MARGIN_S, tuple(times))
+
+
+def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, get_up_row: dict, get_up_trajectory: Trajectory, landed_s: float) -> tuple[dict | None, str]:
+    """A turn-over followed by a get-up the robot has, as one library motion, written if proven.
+
+    The turn-over's keyframes from its settled lying posture, its last goals held until
+    ``landed_s`` (:func:`landing`; a momentum turn-over, ``clamp_lead``, has them clamped into the
+    envelope), then a planned collision-free path (RRT-blossom, as ``rise`` plans) from where the
+    nominal model lies then to the get-up's start, held ``ARRIVAL_SETTLE_S``, then the get-up's
+    rows exactly as proven on this robot (its retiming and adaptation included). Judged on the robustness players and proven on the ensemble
+    as one motion (:func:`robot_rise.authoring.write.prove_for_library`). Writes its two files
+    into ``out_dir`` (no index: the caller merges the row). The row keeps the get-up's timing
+    window and combined variants, and the larger of their noisy replays.
+
+    Returns:
+        (its index row, "") or (None, why it is not written).
+    """
+    spec, get_up = motion_specs(robot, (turn,))[0], str(get_up_row["name"])
+    try:
+        start = _settled(robot, spec)
+    except PostureError as e:
+        return None, str(e)
+    players = robustness_players(robot)
+    turned = build_trajectory(robot, start, (*spec.keyframes, Keyframe(landed_s, {})))
+    if turn.clamp_lead:  # the turn's goals: the planned path and the get-up's rows stay as written
+        turned = clamp_goal_lead(robot, turned, players, spread_starts=arrival_spread_starts(robot, start))
+    # where it lies once landed (nominal model), and a collision-free path from there to the
+    # get-up's start: the landed limbs lie otherwise on every body (crossed feet, an arm under)
+    rec = players[0].play(turned, hold_s=0.0)
+    k = len(rec.t) - 1
+    lying = Posture(robot.name, rec.root_pose[k, :3], rec.root_pose[k, 3:], dict(zip(robot.joint_names, np.clip(rec.q[k], robot.joint_lower, robot.joint_upper))))
+    checker = ValidityChecker(robot, PROOF_SCENE)
+    goal = place_near(get_up_trajectory.start, lying, checker)
+    planned = plan_trajectory(PlanningProblem(start=lying, goal=goal, checker=checker, budget_s=TURN_OVER_PLAN_BUDGET_S, seed=0),
+                              report_clearance=False)
+    if not planned.solved or planned.trajectory is None:
+        return None, f"no path from where it lands to {get_up}'s start: {planned.result.reason or planned.result.status.value}"
+    approach = join_with_blend(turned, planned.trajectory, 0, blend_s=TURN_OVER_STEP_S)
+    tr = join_with_blend(approach, dataclasses.replace(get_up_trajectory, root=None), 0, blend_s=ARRIVAL_SETTLE_S)
+    kfs = (*spec.keyframes, Keyframe(landed_s, {}))
+    name = f"{turn.name}_then_{get_up}"
+    extra = {"strategy": f"{turn.description}; then {get_up}", "lying": turn.lying, "keyframe_times_s": [k.t_s for k in kfs],
+             "turn_over": {"strategy": turn.name, "landed_s": landed_s, "then": get_up}}
+    # lying, a limb rests on another (Wolfgang-OP's upper foot on its lower leg): touching is the proof's standard here, not any contact
+    got = prove_for_library(robot, tr, start, players, clamp_lead=False, connect_until_s=spec.keyframes[spec.connect_keyframe].t_s, report=extra,
+                            touching_ok=True)
+    if isinstance(got, str):
+        return None, got
+    tr, v, connect_until_s = got
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_motion(out_dir, name, tr, start)
+    log.info("%s: %.2f s; %s", name, tr.duration_s, v.summary())
+    noisy = max(turn.noise_replays, int(get_up_row.get("noise_replays", 0)))
+    return {"name": name, "lying": turn.lying, "strategy": extra["strategy"], "trajectory": f"{name}.json", "start": f"{name}.start.json",
+            "connect_until_s": connect_until_s, "duration_s": round(tr.duration_s, 3), "turn_over": turn.name,
+            **{k: get_up_row[k] for k in ("max_stretch", "combined_variants") if k in get_up_row},
+            **({"noise_replays": noisy} if noisy else {})}, ""
