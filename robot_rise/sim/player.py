@@ -180,7 +180,8 @@ class Player:
         for g in rg:
             if int(m.geom_bodyid[g]) in foot_bodies:
                 self._is_foot_geom[g] = True
-        self.robot_geom_names = tuple(m.geom(int(g)).name or f"geom{int(g)}" for g in rg)
+        # an unnamed geom (a published model names few) by its body, so that a message says what touched
+        self.robot_geom_names = tuple(m.geom(int(g)).name or f"{m.body(int(m.geom_bodyid[g])).name}.geom{int(g)}" for g in rg)
         self.foot_geom_cols = np.array([self._robot_geom_col[g] for g in rg if self._is_foot_geom[g]], dtype=int)
         self._robot_bodies = np.arange(1, m.nbody)
         self._body_mass = m.body_mass[1:].copy()
