@@ -12,11 +12,12 @@ import pytest
 
 from robot_rise.authoring import robustness_players
 from robot_rise.authoring.build import build_library
-from robot_rise.authoring.turn_over import LANDED_MARGIN_S, landing
+from robot_rise.authoring.turn_over import landing
 from robot_rise.errors import FormatError
 from robot_rise.library import default_library_dir, load_library, load_strategies, read_strategy
 from robot_rise.model import load_robot
 from robot_rise.paths import configs_dir
+from robot_rise.sampling import classify_lying
 
 ROBOT = load_robot()
 STRATEGIES = {s.name: s for s in load_strategies()}
@@ -40,11 +41,35 @@ def test_the_roll_lands_on_the_front_at_rest_on_every_player_and_says_when() -> 
     roll = STRATEGIES["supine_roll_onto_front"]
     players = robustness_players(ROBOT)
     got = landing(ROBOT, roll, players)
-    assert got.landed_s is not None and len(got.per_player_s) == len(players)
-    assert roll.keyframes[-1].t_s <= min(got.per_player_s) and got.landed_s == pytest.approx(max(got.per_player_s) + LANDED_MARGIN_S)
+    assert got.landed_s is not None and len(got.per_player_s) == len(players) and got.turn is not None and got.start is not None
+    # replayed independently on the heaviest corner up to the landing time: prone there, at rest
+    rec = players[-1].play(got.turn, hold_s=0.0)
+    k = int(np.searchsorted(rec.t, got.landed_s))
+    assert classify_lying(rec.root_pose[k, 3:]) == "prone"
+    assert np.linalg.norm(rec.root_vel[k:, 3:], axis=1).max() < 0.5 and np.abs(rec.qd[k:]).max() < 0.5
+    # ... and it had not yet landed at the roll's last keyframe
+    assert classify_lying(rec.root_pose[int(np.searchsorted(rec.t, roll.keyframes[-1].t_s)), 3:]) != "prone" or \
+        np.abs(rec.qd[int(np.searchsorted(rec.t, roll.keyframes[-1].t_s))]).max() > 0.5
     wrong = dataclasses.replace(roll, lands="left")  # it does not end on its side
     missed = landing(ROBOT, wrong, players[:1])
     assert missed.landed_s is None and "not at rest left" in missed.reason
+
+
+def test_turn_overs_are_not_authored_as_get_ups(tmp_path: Path) -> None:
+    from robot_rise.authoring import author_library, motion_specs
+
+    assert not {s.name for s in motion_specs(ROBOT)} & {s.name for s in TURN_OVERS}
+    failures: dict[str, str] = {}
+    assert author_library(tmp_path, ROBOT, names=["supine_roll_onto_front"], failures=failures) == []
+    assert "a turn-over" in failures["supine_roll_onto_front"] and not (tmp_path / "supine_roll_onto_front.json").exists()
+
+
+def test_a_build_refuses_a_strategy_name_there_is_not(tmp_path: Path) -> None:
+    from robot_rise.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="no strategy named supine_rol_onto_front"):
+        build_library(ROBOT, tmp_path / "motions", names=["supine_rol_onto_front"])
+    assert not (tmp_path / "motions" / "index.json").exists()
 
 
 def test_a_build_skips_a_turn_over_where_the_kind_has_its_own_motion_and_keeps_the_library(tmp_path: Path) -> None:

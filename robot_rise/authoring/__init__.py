@@ -14,7 +14,8 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
   in: ``robot_rise.filter.arrival_spread_starts``).
 - :mod:`~robot_rise.authoring.robustness` -- the five players a motion must stand on.
 - :mod:`~robot_rise.authoring.turn_over` -- ``landing``: where and when a turn-over strategy
-  (``"lands"``) leaves the body, for the get-up that follows it.
+  (``"lands"``) leaves the body; ``author_turn_over``: the turn, a planned path and a proven
+  get-up written as one motion.
 - :mod:`~robot_rise.authoring.write` -- ``motion_specs`` (strategies mapped onto a robot's joints
   by its roles), ``author_library``: settle, time, verify, prove, write;
   ``reprove_library`` proves the shipped motions again (nominal model and ensemble).

@@ -24,6 +24,7 @@ from pathlib import Path
 from robot_rise.authoring.robustness import robustness_players
 from robot_rise.authoring.turn_over import author_turn_over, landing
 from robot_rise.authoring.write import author_library
+from robot_rise.errors import ConfigError
 from robot_rise.fileio import write_text_atomic
 from robot_rise.library import LIBRARY_FORMAT, LYING_KINDS, Strategy, load_strategies
 from robot_rise.model import Robot, load_robot
@@ -37,8 +38,9 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BuildReport:
-    """What ``build_library`` did: index rows written, the reason per strategy not written, and
-    the rows of the library's earlier motions a partial build (``names``) left in place."""
+    """What ``build_library`` did: index rows written, the reason per strategy not written, the
+    rows of the library's earlier motions a partial build (``names``) left in place, and the
+    turn-overs not built because their lying kind has a motion."""
 
     robot: str
     directory: Path
@@ -75,19 +77,21 @@ def _author_one(robot_dir: str, name: str, scratch: str) -> tuple[list[dict], di
     return rows, failures
 
 
-def _author_turn_over(robot_dir: str, turn: str, get_ups: list[tuple[dict, str]], scratch: str,
+def _author_turn_over(robot: Robot | str, turn: str, get_ups: list[tuple[dict, str]], scratch: str,
                       strategies: tuple[Strategy, ...] | None = None) -> tuple[list[dict], dict[str, str]]:
     """The turn-over ``turn`` followed by each of ``get_ups`` ((index row, trajectory file),
-    quickest first) until one is written (:func:`robot_rise.authoring.turn_over.author_turn_over`)."""
+    quickest first) until one is written (:func:`robot_rise.authoring.turn_over.author_turn_over`);
+    ``robot`` is the robot, or its directory in a worker process."""
     try:
-        robot = load_robot(robot_dir)
+        robot = load_robot(robot) if isinstance(robot, str) else robot
         turn_over = next(s for s in (strategies if strategies is not None else load_strategies()) if s.name == turn)
-        landed = landing(robot, turn_over, robustness_players(robot))
+        players = robustness_players(robot)
+        landed = landing(robot, turn_over, players)
         if landed.landed_s is None:
             return [], {turn: f"does not land {turn_over.lands}: {landed.reason}"}
         reasons = []
         for row, path in get_ups:
-            written, why = author_turn_over(Path(scratch), robot, turn_over, row, read_trajectory(path), landed.landed_s)
+            written, why = author_turn_over(Path(scratch), robot, turn_over, landed, row, read_trajectory(path), players)
             if written is not None:
                 return [written], {}
             reasons.append(f"then {row['name']}: {why}")
@@ -107,8 +111,14 @@ def build_library(
         jobs: processes (strategies are authored in parallel).
         names: only these strategies (default: all).
         strategies: the strategies (default: the shipped ``configs/strategies``).
+
+    Raises:
+        ConfigError: ``names`` names a strategy there is not.
     """
     everything = strategies if strategies is not None else load_strategies()
+    unknown = sorted(set(names or ()) - {s.name for s in everything})
+    if unknown:
+        raise ConfigError(f"no strategy named {', '.join(unknown)}", hint=f"strategies: {', '.join(s.name for s in everything)}")
     chosen = [s for s in everything if not names or s.name in names]
     get_ups = [s for s in chosen if s.lands is None]
     turn_overs = [s for s in chosen if s.lands is not None]
@@ -144,9 +154,9 @@ def build_library(
         kept = [r for r in before if r["name"] not in rebuilt and r.get("turn_over") not in rebuilt]
         have = [*rows.values(), *kept]
         tasks: dict[str, list[tuple[dict, str]]] = {}
+        known = {s.name for s in everything if s.lands is None}
         for turn in turn_overs:
             own = sorted(r["name"] for r in have if r["lying"] == turn.lying)
-            known = {s.name for s in everything if s.lands is None}
             followers = sorted((r for r in have if r["lying"] == turn.lands and r["name"] in known), key=lambda r: float(r["duration_s"]))
             if own:
                 skipped[turn.name] = f"not needed: lying {turn.lying} has {', '.join(own)}"
@@ -156,7 +166,7 @@ def build_library(
                 # a get-up of this build is still in its scratch directory, a kept one in the library's
                 tasks[turn.name] = [(r, str((scratch[r["name"]] if r["name"] in rows else out) / r["trajectory"])) for r in followers]
         if strategies is not None or jobs <= 1:
-            done = {t: _author_turn_over(str(robot.directory), t, g, str(scratch[t]), tuple(everything)) for t, g in tasks.items()}
+            done = {t: _author_turn_over(robot, t, g, str(scratch[t]), tuple(everything)) for t, g in tasks.items()}
         else:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 futures = {t: pool.submit(_author_turn_over, str(robot.directory), t, g, str(scratch[t])) for t, g in tasks.items()}
@@ -169,11 +179,10 @@ def build_library(
         for name, row in rows.items():
             for key in ("trajectory", "start"):
                 shutil.move(str(scratch[name] / row[key]), str(out / row[key]))
-    old = kept
     written = tuple(rows[s.name] for s in chosen if s.name in rows)
-    index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [*old, *written]}
+    index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [*kept, *written]}
     write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     report = BuildReport(robot.name, out, written, {s.name: failed[s.name] for s in chosen if s.name in failed}, {s.name: s.lying for s in chosen},
-                         tuple(old), {s.name: skipped[s.name] for s in chosen if s.name in skipped})
+                         tuple(kept), {s.name: skipped[s.name] for s in chosen if s.name in skipped})
     write_text_atomic(out / "build_report.json", json.dumps(report.to_dict(), indent=1) + "\n")
     return report

@@ -59,11 +59,15 @@ class Landing:
             plus ``LANDED_MARGIN_S`` [s]; None where it does not (``reason`` says why).
         per_player_s: each player's landing time [s], up to the first player where it did not land.
         reason: why it does not land (empty when it does).
+        start: the settled lying posture the turn starts from (None where it does not settle so).
+        turn: the turn's targets from ``start``, its last goals held ``LANDING_WAIT_S``: what was played.
     """
 
     landed_s: float | None
     per_player_s: tuple[float, ...]
     reason: str = ""
+    start: Posture | None = None
+    turn: Trajectory | None = None
 
 
 def _settled(robot: Robot, spec: MotionSpec) -> Posture:
@@ -71,9 +75,9 @@ def _settled(robot: Robot, spec: MotionSpec) -> Posture:
 
 
 def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
-    """Play the turn-over from its settled lying posture on each player,
-    its last goals held for ``LANDING_WAIT_S``, and find when the body lies at rest, for good, in
-    the kind it lands in.
+    """Play the turn-over from its settled lying posture on each player, its last goals held for
+    ``LANDING_WAIT_S``, and find when the body lies at rest, for good, in the kind it lands in
+    (as written: :func:`author_turn_over` checks the same of the turn it writes).
 
     Raises:
         ValueError: ``turn`` is not a turn-over.
@@ -81,7 +85,10 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
     if turn.lands is None:
         raise ValueError(f"{turn.name} is not a turn-over (no 'lands')")
     spec = motion_specs(robot, (turn,))[0]
-    start = _settled(robot, spec)
+    try:
+        start = _settled(robot, spec)
+    except PostureError as e:
+        return Landing(None, (), str(e))
     if classify_lying(start.root_quat_wxyz) != turn.lying:
         return Landing(None, (), f"its lying posture settles {classify_lying(start.root_quat_wxyz)}, not {turn.lying}")
     end = spec.keyframes[-1].t_s
@@ -96,40 +103,46 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         landed = (kinds == turn.lands) & still
         if not landed[-1]:
             return Landing(None, tuple(times), f"player {i}: ends lying {kinds[-1]}{'' if still[-1] else ', still moving'}, "
-                                                f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {turn.lands}")
+                                                f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {turn.lands}", start, tr)
         first_for_good = int(np.flatnonzero(~landed)[-1]) + 1 if not landed.all() else 0
         times.append(max(float(rec.t[first_for_good]), end))
-    return Landing(max(times) + LANDED_MARGIN_S, tuple(times))
+    return Landing(max(times) + LANDED_MARGIN_S, tuple(times), "", start, tr)
 
 
-def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, get_up_row: dict, get_up_trajectory: Trajectory, landed_s: float) -> tuple[dict | None, str]:
+def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landing, get_up_row: dict, get_up_trajectory: Trajectory,
+                     players: list[Player]) -> tuple[dict | None, str]:
     """A turn-over followed by a get-up the robot has, as one library motion, written if proven.
 
-    The turn-over's keyframes from its settled lying posture, its last goals held until
-    ``landed_s`` (:func:`landing`; a momentum turn-over, ``clamp_lead``, has them clamped into the
-    envelope), then a planned collision-free path (RRT-blossom, as ``rise`` plans) from where the
-    nominal model lies then to the get-up's start, held ``ARRIVAL_SETTLE_S``, then the get-up's
-    rows exactly as proven on this robot (its retiming and adaptation included). Judged on the robustness players and proven on the ensemble
-    as one motion (:func:`robot_rise.authoring.write.prove_for_library`). Writes its two files
-    into ``out_dir`` (no index: the caller merges the row). The row keeps the get-up's timing
-    window and combined variants, and the larger of their noisy replays.
+    The turn as :func:`landing` played it up to ``landed.landed_s`` (a momentum turn-over's
+    goals clamped into the envelope, and the nominal body checked to lie at rest where it
+    lands then), then a planned collision-free path (RRT-blossom, as
+    ``rise`` plans) from where the nominal model (``players[0]``) lies then to the get-up's start,
+    held ``ARRIVAL_SETTLE_S``, then the get-up's rows exactly as proven on this robot (its
+    retiming and adaptation included). Judged on the robustness ``players`` and proven on the
+    ensemble as one motion (:func:`robot_rise.authoring.write.prove_for_library`). Writes its two
+    files into ``out_dir`` (no index: the caller merges the row). The row carries the larger of
+    the two strategies' combined variants and noisy replays, and no timing window of its own.
 
     Returns:
         (its index row, "") or (None, why it is not written).
+
+    Raises:
+        ValueError: ``landed`` is not a landing (``landed_s`` None).
     """
-    spec, get_up = motion_specs(robot, (turn,))[0], str(get_up_row["name"])
-    try:
-        start = _settled(robot, spec)
-    except PostureError as e:
-        return None, str(e)
-    players = robustness_players(robot)
-    turned = build_trajectory(robot, start, (*spec.keyframes, Keyframe(landed_s, {})))
-    if turn.clamp_lead:  # the turn's goals: the planned path and the get-up's rows stay as written
+    if landed.landed_s is None or landed.start is None or landed.turn is None:
+        raise ValueError(f"{turn.name} did not land: {landed.reason}")
+    spec, get_up, start = motion_specs(robot, (turn,))[0], str(get_up_row["name"]), landed.start
+    keep = landed.turn.t <= landed.landed_s + 1e-9
+    turned = dataclasses.replace(landed.turn, t=landed.turn.t[keep], q=landed.turn.q[keep])
+    if turn.clamp_lead:  # a momentum turn's goals pulled back into the envelope: the path and the get-up's rows stay as written
         turned = clamp_goal_lead(robot, turned, players, spread_starts=arrival_spread_starts(robot, start))
     # where it lies once landed (nominal model), and a collision-free path from there to the
     # get-up's start: the landed limbs lie otherwise on every body (crossed feet, an arm under)
     rec = players[0].play(turned, hold_s=0.0)
     k = len(rec.t) - 1
+    at_rest = (np.linalg.norm(rec.root_vel[k, 3:]) < SETTLED_ROOT_RATE_RAD_S and np.abs(rec.qd[k]).max() < SETTLED_JOINT_SPEED_RAD_S)
+    if classify_lying(rec.root_pose[k, 3:]) != turn.lands or not at_rest:  # the clamp took its momentum
+        return None, f"as clamped into the envelope, the turn does not lie at rest {turn.lands} by {landed.landed_s:.2f} s"
     lying = Posture(robot.name, rec.root_pose[k, :3], rec.root_pose[k, 3:], dict(zip(robot.joint_names, np.clip(rec.q[k], robot.joint_lower, robot.joint_upper))))
     checker = ValidityChecker(robot, PROOF_SCENE)
     goal = place_near(get_up_trajectory.start, lying, checker)
@@ -139,10 +152,10 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, get_up_row: di
         return None, f"no path from where it lands to {get_up}'s start: {planned.result.reason or planned.result.status.value}"
     approach = join_with_blend(turned, planned.trajectory, 0, blend_s=TURN_OVER_STEP_S)
     tr = join_with_blend(approach, dataclasses.replace(get_up_trajectory, root=None), 0, blend_s=ARRIVAL_SETTLE_S)
-    kfs = (*spec.keyframes, Keyframe(landed_s, {}))
+    kfs = (*spec.keyframes, Keyframe(landed.landed_s, {}))
     name = f"{turn.name}_then_{get_up}"
     extra = {"strategy": f"{turn.description}; then {get_up}", "lying": turn.lying, "keyframe_times_s": [k.t_s for k in kfs],
-             "turn_over": {"strategy": turn.name, "landed_s": landed_s, "then": get_up}}
+             "turn_over": {"strategy": turn.name, "landed_s": landed.landed_s, "then": get_up}}
     # lying, a limb rests on another (Wolfgang-OP's upper foot on its lower leg): touching is the proof's standard here, not any contact
     got = prove_for_library(robot, tr, start, players, clamp_lead=False, connect_until_s=spec.keyframes[spec.connect_keyframe].t_s, report=extra,
                             touching_ok=True)
@@ -153,7 +166,7 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, get_up_row: di
     write_motion(out_dir, name, tr, start)
     log.info("%s: %.2f s; %s", name, tr.duration_s, v.summary())
     noisy = max(turn.noise_replays, int(get_up_row.get("noise_replays", 0)))
+    combined = max(turn.combined_variants, int(get_up_row.get("combined_variants", 0)))
     return {"name": name, "lying": turn.lying, "strategy": extra["strategy"], "trajectory": f"{name}.json", "start": f"{name}.start.json",
             "connect_until_s": connect_until_s, "duration_s": round(tr.duration_s, 3), "turn_over": turn.name,
-            **{k: get_up_row[k] for k in ("max_stretch", "combined_variants") if k in get_up_row},
-            **({"noise_replays": noisy} if noisy else {})}, ""
+            **({"combined_variants": combined} if combined else {}), **({"noise_replays": noisy} if noisy else {})}, ""

@@ -2,7 +2,8 @@
 
 A motion is written only after it stands on all five players of
 :func:`robot_rise.authoring.robustness.robustness_players` within ``TORQUE_BOUND`` of the
-envelope and without self collision, and its proof (:func:`robot_rise.filter.check` on flat
+envelope and without self collision (a turn-over's: none deeper than the proof's tolerance), and
+its proof (:func:`robot_rise.filter.check` on flat
 ground) says proven; its index row is added or replaced, so the index always names motions that
 pass. The file's ``report`` holds the judge's verdict, the peak torque ratio (nominal and over the
 corners), ZMP margin and keyframe times, and the proof's entries (``Proof.to_dict``: ``proven``,
@@ -267,9 +268,11 @@ def prove_for_library(robot: Robot, tr: Trajectory, start: Posture, players: lis
 
 
 def _deepest_self_contact(rec: Recording) -> str:
+    """How deep and when the deepest self contact was, and (the recording keeps no per-step pairs)
+    which geoms touched during the play."""
     k = int(np.argmax(rec.self_penetration_m))
-    return (f" ({1000 * float(rec.self_penetration_m[k]):.1f} mm deep at {rec.t[k]:.2f} s: "
-            + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3]) + ")")
+    return (f" (deepest {1000 * float(rec.self_penetration_m[k]):.1f} mm at {rec.t[k]:.2f} s; touching during the play: "
+            + ", ".join(f"{a}/{b}" for a, b in rec.self_contact_pairs[:3]) + ("..." if len(rec.self_contact_pairs) > 3 else "") + ")")
 
 
 def write_motion(out_dir: Path, name: str, tr: Trajectory, start: Posture) -> None:
@@ -323,14 +326,19 @@ def author_library(
         except (ValueError, KeyError):
             old_rows = {}
     entries = []
-    # turn-overs end lying, not standing: build_library follows each with a get-up (author_turn_over)
-    chosen = tuple(s for s in (strategies if strategies is not None else load_strategies()) if s.lands is None)
+    every = strategies if strategies is not None else load_strategies()
+    # turn-overs end lying, not standing: build_library follows each with a get-up (turn_over.author_turn_over)
+    chosen = tuple(s for s in every if s.lands is None)
     specs = motion_specs(robot, chosen)
     failed = failures if failures is not None else {}
 
     def fail(name: str, reason: str) -> None:
         log.error("%s: not written: %s", name, reason)
         failed[name] = reason
+
+    for s in every:
+        if s.lands is not None and names and s.name in names:
+            fail(s.name, "a turn-over (it ends lying): robot-rise library build follows it with a get-up where a lying kind has none")
 
     for spec in specs:
         if names and spec.name not in names:
@@ -417,6 +425,7 @@ def author_library(
         write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     if names is None:  # a full rebuild drops rows of motions no longer authored (failed ones keep their last passing files)
         order = [s.name for s in specs]
-        index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in order if n in old_rows]}
+        turned = [r for n, r in old_rows.items() if n not in order and r.get("turn_over")]  # library build's, not authored here
+        index = {"format": LIBRARY_FORMAT, "robot": robot.name, "motions": [old_rows[n] for n in order if n in old_rows] + turned}
         write_text_atomic(index_path, json.dumps(index, indent=1) + "\n")
     return entries

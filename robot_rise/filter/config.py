@@ -31,10 +31,11 @@ class FilterConfig:
         divergence_hold_s: how long the error must last to count [s].
         slow_factor: time stretch applied to an offending window per iteration.
         window_pad_s: padding around an offending window [s].
-        blend_s: the shortest step from the plan's last targets to the motion's frame [s]
-            (``join_with_blend``; a larger mismatch takes longer, at 2 rad/s). The plan ends on
-            the frame, so the step is a pause: 0.1 s, not 0.3 (issue 17: 24 of 24 OP3 rises of
-            seed 1 proven either way, each 0.2 s sooner).
+        blend_s: the shortest step from one part's last targets to the next part's first
+            (``join_with_blend``: plan to library frame, a composed approach to the motion's
+            first targets, a failed attempt to the rise after it) [s]; a larger mismatch takes
+            longer, at 2 rad/s. Where the plan ends on the frame the step is a pause: 0.1 s, not
+            0.3 (issue 17: 24 of 24 OP3 rises of seed 1 proven either way, each 0.2 s sooner).
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].

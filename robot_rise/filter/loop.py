@@ -5,8 +5,8 @@ database motion at the most similar frame with blending. A robot has no root act
 strength is its servos', so here the "tracking controller" is the servo model itself (the
 targets ARE what the servos receive) and the filter reshapes the targets, never the physics:
 
-1. join the planned path to the library motion from the connecting frame on, blending the
-   targets over ``blend_s`` around the join (000 section 4.3);
+1. join the planned path to the library motion from the connecting frame on, the step between
+   them taking at least ``blend_s`` (000 section 4.3);
 2. play it through the servo model (robot_rise.sim.player) from the start posture;
 3. find violations: torque beyond (1 - margin) of the torque-speed envelope (dissertation 003
    eq. 2.2 strength limits; for us the DC-motor envelope), ZMP outside the support polygon while

@@ -104,11 +104,12 @@ class KeyframedMotion(Generic[K]):
 
 @dataclass(frozen=True, kw_only=True)
 class Strategy(KeyframedMotion[RoleKeyframe]):
-    """One get-up strategy (see the module docstring). Times are a shape; most are found in simulation.
+    """One get-up strategy, or a turn-over (see the module docstring). Times are a shape; most are found in simulation.
 
     Attributes (besides those of :class:`KeyframedMotion`):
         description: one line for people.
         lying_roles: role values of the lying posture before settling [rad].
+        lands: a turn-over's lying kind after its keyframes (None: a get-up).
     """
 
     description: str
