@@ -22,10 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from robot_rise.authoring.goal_lead import clamp_goal_lead
-from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
-from robot_rise.authoring.lying import settle
+from robot_rise.authoring.keyframes import Keyframe, build_trajectory
 from robot_rise.authoring.robustness import robustness_players
-from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, write_motion
+from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, settled_start, write_motion
 from robot_rise.errors import PostureError
 from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, join_with_blend
 from robot_rise.library import Strategy
@@ -33,9 +32,9 @@ from robot_rise.model import Robot
 from robot_rise.placement import place_near
 from robot_rise.planning.problem import PlanningProblem
 from robot_rise.planning.to_trajectory import plan_trajectory
-from robot_rise.posture import Posture, clamp_to_limits
+from robot_rise.posture import Posture
 from robot_rise.sampling import classify_lying
-from robot_rise.sim.player import Player
+from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.standing import SETTLED_JOINT_SPEED_RAD_S, SETTLED_ROOT_RATE_RAD_S, SETTLED_ROOT_SPEED_M_S
 from robot_rise.trajectory import Trajectory
 from robot_rise.validity import ValidityChecker
@@ -70,8 +69,13 @@ class Landing:
     turn: Trajectory | None = None
 
 
-def _settled(robot: Robot, spec: MotionSpec) -> Posture:
-    return clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
+def _at_rest_in(rec: Recording, kind: str) -> np.ndarray:
+    """Per recorded step: the body lies in ``kind`` and is still (root and every joint)."""
+    kinds = np.array([classify_lying(q) for q in rec.root_pose[:, 3:]])
+    return ((kinds == kind)
+            & (np.linalg.norm(rec.root_vel[:, :3], axis=1) < SETTLED_ROOT_SPEED_M_S)
+            & (np.linalg.norm(rec.root_vel[:, 3:], axis=1) < SETTLED_ROOT_RATE_RAD_S)
+            & (np.abs(rec.qd).max(axis=1) < SETTLED_JOINT_SPEED_RAD_S))
 
 
 def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
@@ -86,7 +90,7 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         raise ValueError(f"{turn.name} is not a turn-over (no 'lands')")
     spec = motion_specs(robot, (turn,))[0]
     try:
-        start = _settled(robot, spec)
+        start = settled_start(robot, spec)
     except PostureError as e:
         return Landing(None, (), str(e))
     if classify_lying(start.root_quat_wxyz) != turn.lying:
@@ -96,13 +100,9 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
     times: list[float] = []
     for i, player in enumerate(players):
         rec = player.play(tr, hold_s=0.0)
-        kinds = np.array([classify_lying(q) for q in rec.root_pose[:, 3:]])
-        still = ((np.linalg.norm(rec.root_vel[:, :3], axis=1) < SETTLED_ROOT_SPEED_M_S)
-                 & (np.linalg.norm(rec.root_vel[:, 3:], axis=1) < SETTLED_ROOT_RATE_RAD_S)
-                 & (np.abs(rec.qd).max(axis=1) < SETTLED_JOINT_SPEED_RAD_S))
-        landed = (kinds == turn.lands) & still
+        landed = _at_rest_in(rec, turn.lands)
         if not landed[-1]:
-            return Landing(None, tuple(times), f"player {i}: ends lying {kinds[-1]}{'' if still[-1] else ', still moving'}, "
+            return Landing(None, tuple(times), f"player {i}: ends lying {classify_lying(rec.root_pose[-1, 3:])}, "
                                                 f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {turn.lands}", start, tr)
         first_for_good = int(np.flatnonzero(~landed)[-1]) + 1 if not landed.all() else 0
         times.append(max(float(rec.t[first_for_good]), end))
@@ -140,8 +140,7 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
     # get-up's start: the landed limbs lie otherwise on every body (crossed feet, an arm under)
     rec = players[0].play(turned, hold_s=0.0)
     k = len(rec.t) - 1
-    at_rest = (np.linalg.norm(rec.root_vel[k, 3:]) < SETTLED_ROOT_RATE_RAD_S and np.abs(rec.qd[k]).max() < SETTLED_JOINT_SPEED_RAD_S)
-    if classify_lying(rec.root_pose[k, 3:]) != turn.lands or not at_rest:  # the clamp took its momentum
+    if not _at_rest_in(rec, turn.lands)[k]:  # the clamp took its momentum
         return None, f"as clamped into the envelope, the turn does not lie at rest {turn.lands} by {landed.landed_s:.2f} s"
     lying = Posture(robot.name, rec.root_pose[k, :3], rec.root_pose[k, 3:], dict(zip(robot.joint_names, np.clip(rec.q[k], robot.joint_lower, robot.joint_upper))))
     checker = ValidityChecker(robot, PROOF_SCENE)

@@ -58,7 +58,7 @@ from robot_rise.sim.standing import StandVerdict, judge
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 from robot_rise.trajectory import Trajectory, trajectory_from_dict, trajectory_to_dict, write_trajectory
 
-__all__ = ["author_library", "prove_for_library", "write_motion", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
+__all__ = ["author_library", "settled_start", "prove_for_library", "write_motion", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
 
 log = logging.getLogger(__name__)
 
@@ -220,6 +220,15 @@ def motion_specs(robot: Robot, strategies: tuple[Strategy, ...] | None = None) -
     return tuple(out)
 
 
+def settled_start(robot: Robot, spec: MotionSpec) -> Posture:
+    """The motion's lying posture dropped onto flat ground to rest, clamped into the joint limits.
+
+    Raises:
+        PostureError: a joint rests further than the clamp tolerance past its limit.
+    """
+    return clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
+
+
 def prove_for_library(robot: Robot, tr: Trajectory, start: Posture, players: list[Player], *, clamp_lead: bool, connect_until_s: float,
                       report: dict, touching_ok: bool = False) -> tuple[Trajectory, StandVerdict, float] | str:
     """A library motion's trial: its goals clamped into the envelope (``clamp_lead``), standing
@@ -344,7 +353,7 @@ def author_library(
         if names and spec.name not in names:
             continue
         try:
-            start = clamp_to_limits(settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad), robot, where=f"{spec.name}: settled start")[0]
+            start = settled_start(robot, spec)
         except PostureError as e:
             fail(spec.name, str(e))
             continue
