@@ -42,8 +42,8 @@ def test_the_roll_lands_on_the_front_at_rest_on_every_player_and_says_when() -> 
     players = robustness_players(ROBOT)
     got = landing(ROBOT, roll, players)
     assert got.landed_s is not None and len(got.per_player_s) == len(players) and got.turn is not None and got.start is not None
-    # replayed independently on the heaviest corner up to the landing time: prone there, at rest
-    rec = players[-1].play(got.turn, hold_s=0.0)
+    # replayed independently on the nominal body (the path starts where it lies) up to the landing time: prone there, at rest
+    rec = players[0].play(got.turn, hold_s=0.0)
     k = int(np.searchsorted(rec.t, got.landed_s))
     assert classify_lying(rec.root_pose[k, 3:]) == "prone"
     assert np.linalg.norm(rec.root_vel[k:, 3:], axis=1).max() < 0.5 and np.abs(rec.qd[k:]).max() < 0.5
@@ -116,3 +116,18 @@ def test_a_build_fills_a_lying_kind_without_a_motion_with_the_turn_over_and_a_pr
     tail = motion.trajectory.q[-len(get_up.trajectory.t):]
     assert np.allclose(tail, get_up.trajectory.q, atol=1e-6)  # the get-up as proven on this robot, not re-authored
     assert motion.duration_s > get_up.trajectory.duration_s + 2.0  # after the roll has landed
+
+
+@pytest.mark.slow
+def test_wolfgang_gets_a_proven_motion_from_its_side_by_tipping_onto_its_front(imported, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Wolfgang-OP as its team published it has no side get-up of its own: the tip off its right
+    side, legs apart (its 106 mm feet are as wide as its hips are apart), then its prone get-up,
+    is proven as one motion."""
+    robot = imported["wolfgang"].robot
+    report = build_library(robot, tmp_path / "motions", names=["prone_elbow_knees", "right_tip_onto_front"])
+    rows = {r["name"]: r for r in report.written}
+    assert "prone_elbow_knees" in rows, report.failed
+    tip = rows.get("right_tip_onto_front_then_prone_elbow_knees")
+    assert tip is not None and tip["lying"] == "right" and tip["turn_over"] == "right_tip_onto_front", report.failed
+    assert load_library(tmp_path / "motions").get(tip["name"]).trajectory.report["proven"]
+    assert set(report.kinds_without_motion()) == {"supine", "left"}

@@ -56,10 +56,12 @@ class Landing:
     Attributes:
         landed_s: when the body lies at rest in the strategy's ``lands`` kind on every player,
             plus ``LANDED_MARGIN_S`` [s]; None where it does not (``reason`` says why).
-        per_player_s: each player's landing time [s], up to the first player where it did not land.
+        per_player_s: each player's landing time of the turn as authored (not clamped) [s], up to
+            the first player where it did not land.
         reason: why it does not land (empty when it does).
         start: the settled lying posture the turn starts from (None where it does not settle so).
-        turn: the turn's targets from ``start``, its last goals held ``LANDING_WAIT_S``: what was played.
+        turn: the turn's targets from ``start``, its last goals held ``LANDING_WAIT_S`` (a momentum
+            turn-over's goals clamped into the envelope): what was played.
     """
 
     landed_s: float | None
@@ -80,8 +82,11 @@ def _at_rest_in(rec: Recording, kind: str) -> np.ndarray:
 
 def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
     """Play the turn-over from its settled lying posture on each player, its last goals held for
-    ``LANDING_WAIT_S``, and find when the body lies at rest, for good, in the kind it lands in
-    (as written: :func:`author_turn_over` checks the same of the turn it writes).
+    ``LANDING_WAIT_S``, and find when the body lies at rest, for good, in the kind it lands in.
+
+    A momentum turn-over (``clamp_lead``) then has its goals up to that landing clamped into the
+    envelope, held again, and the nominal body timed again (the clamp slows it): the landing is
+    then the later of both.
 
     Raises:
         ValueError: ``turn`` is not a turn-over.
@@ -97,25 +102,53 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         return Landing(None, (), f"its lying posture settles {classify_lying(start.root_quat_wxyz)}, not {turn.lying}")
     end = spec.keyframes[-1].t_s
     tr = build_trajectory(robot, start, (*spec.keyframes, Keyframe(end + LANDING_WAIT_S, {})))
+    times, reason = _landing_times(tr, turn.lands, end, players)
+    if reason:
+        return Landing(None, times, reason, start, tr)
+    if turn.clamp_lead:
+        # the turn up to its landing clamped (clamping the whole hold too weakens a roll on its
+        # later impacts until it no longer turns over: Wolfgang-OP), held again, and the nominal
+        # body, which the planned path starts from, timed again: the clamp slows it. A corner body
+        # still turning then is the proof's to judge (the path's goals finish its turn: OP3's roll)
+        cut = tr.t <= max(times) + LANDED_MARGIN_S + 1e-9
+        clamped = clamp_goal_lead(robot, dataclasses.replace(tr, t=tr.t[cut], q=tr.q[cut]), players,
+                                  spread_starts=arrival_spread_starts(robot, start))
+        tr = _held(clamped, LANDING_WAIT_S)
+        nominal, reason = _landing_times(tr, turn.lands, end, players[:1])
+        if reason:
+            return Landing(None, times, f"as clamped into the envelope, {reason}", start, tr)
+        return Landing(max(*times, *nominal) + LANDED_MARGIN_S, times, "", start, tr)
+    return Landing(max(times) + LANDED_MARGIN_S, times, "", start, tr)
+
+
+def _landing_times(tr: Trajectory, kind: str, end_s: float, players: list[Player]) -> tuple[tuple[float, ...], str]:
+    """Each player's landing time of ``tr`` (at rest in ``kind`` for good, not before ``end_s``),
+    or the times up to the first player where it does not land and why."""
     times: list[float] = []
     for i, player in enumerate(players):
         rec = player.play(tr, hold_s=0.0)
-        landed = _at_rest_in(rec, turn.lands)
+        landed = _at_rest_in(rec, kind)
         if not landed[-1]:
-            return Landing(None, tuple(times), f"player {i}: ends lying {classify_lying(rec.root_pose[-1, 3:])}, "
-                                                f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {turn.lands}", start, tr)
+            return tuple(times), (f"player {i}: ends lying {classify_lying(rec.root_pose[-1, 3:])}, "
+                                  f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {kind}")
         first_for_good = int(np.flatnonzero(~landed)[-1]) + 1 if not landed.all() else 0
-        times.append(max(float(rec.t[first_for_good]), end))
-    return Landing(max(times) + LANDED_MARGIN_S, tuple(times), "", start, tr)
+        times.append(max(float(rec.t[first_for_good]), end_s))
+    return tuple(times), ""
+
+
+def _held(tr: Trajectory, hold_s: float) -> Trajectory:
+    """``tr`` with its last targets held ``hold_s`` longer, at its row spacing."""
+    dt = float(tr.t[-1] - tr.t[-2])
+    extra = tr.t[-1] + dt * np.arange(1, int(round(hold_s / dt)) + 1)
+    return dataclasses.replace(tr, t=np.concatenate([tr.t, extra]), q=np.concatenate([tr.q, np.repeat(tr.q[-1:], len(extra), axis=0)]))
 
 
 def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landing, get_up_row: dict, get_up_trajectory: Trajectory,
                      players: list[Player]) -> tuple[dict | None, str]:
     """A turn-over followed by a get-up the robot has, as one library motion, written if proven.
 
-    The turn as :func:`landing` played it up to ``landed.landed_s`` (a momentum turn-over's
-    goals clamped into the envelope, and the nominal body checked to lie at rest where it
-    lands then), then a planned collision-free path (RRT-blossom, as
+    The turn as :func:`landing` played it (a momentum turn-over's goals clamped into the
+    envelope) up to ``landed.landed_s``, the nominal body checked to lie at rest there, then a planned collision-free path (RRT-blossom, as
     ``rise`` plans) from where the nominal model (``players[0]``) lies then to the get-up's start,
     held ``ARRIVAL_SETTLE_S``, then the get-up's rows exactly as proven on this robot (its
     retiming and adaptation included). Judged on the robustness ``players`` and proven on the
@@ -134,14 +167,12 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
     spec, get_up, start = motion_specs(robot, (turn,))[0], str(get_up_row["name"]), landed.start
     keep = landed.turn.t <= landed.landed_s + 1e-9
     turned = dataclasses.replace(landed.turn, t=landed.turn.t[keep], q=landed.turn.q[keep])
-    if turn.clamp_lead:  # a momentum turn's goals pulled back into the envelope: the path and the get-up's rows stay as written
-        turned = clamp_goal_lead(robot, turned, players, spread_starts=arrival_spread_starts(robot, start))
     # where it lies once landed (nominal model), and a collision-free path from there to the
     # get-up's start: the landed limbs lie otherwise on every body (crossed feet, an arm under)
     rec = players[0].play(turned, hold_s=0.0)
     k = len(rec.t) - 1
-    if not _at_rest_in(rec, turn.lands)[k]:  # the clamp took its momentum
-        return None, f"as clamped into the envelope, the turn does not lie at rest {turn.lands} by {landed.landed_s:.2f} s"
+    if not _at_rest_in(rec, turn.lands)[k]:  # cut at the landing, replayed from rest: not what landing saw
+        return None, f"cut at its landing, the turn does not lie at rest {turn.lands} by {landed.landed_s:.2f} s"
     lying = Posture(robot.name, rec.root_pose[k, :3], rec.root_pose[k, 3:], dict(zip(robot.joint_names, np.clip(rec.q[k], robot.joint_lower, robot.joint_upper))))
     checker = ValidityChecker(robot, PROOF_SCENE)
     goal = place_near(get_up_trajectory.start, lying, checker)
