@@ -5,8 +5,9 @@ as a get-up alone. ``robot-rise library build`` uses one where a robot has no pr
 its lying kind (:func:`robot_rise.authoring.build.build_library`):
 
 1. :func:`landing` -- when the body lies at rest, for good, in the kind it lands in, on every
-   robustness player: a heavier body with slower servos (Wolfgang-OP: 6.1 kg, joints saturating
-   at ~4.5 rad/s) lands later than the body the keyframes were written on.
+   robustness player (a momentum turn-over's goals then clamped into the envelope, and the
+   nominal body timed again): a heavier body with slower servos (Wolfgang-OP: 6.1 kg, joints
+   saturating at ~4.5 rad/s) lands later than the body the keyframes were written on.
 2. :func:`author_turn_over` -- the turn, held until it landed, a planned path from where it lies
    to a proven get-up's start, then that get-up's rows as proven on this robot; judged, proven
    and written as one library motion.
@@ -23,7 +24,6 @@ import numpy as np
 
 from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, build_trajectory
-from robot_rise.authoring.robustness import robustness_players
 from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, settled_start, write_motion
 from robot_rise.errors import PostureError
 from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, join_with_blend
@@ -54,8 +54,9 @@ class Landing:
     """Where a turn-over leaves the robot.
 
     Attributes:
-        landed_s: when the body lies at rest in the strategy's ``lands`` kind on every player,
-            plus ``LANDED_MARGIN_S`` [s]; None where it does not (``reason`` says why).
+        landed_s: when the body lies at rest in the strategy's ``lands`` kind on every player
+            (and, as clamped, on the nominal one), plus ``LANDED_MARGIN_S`` [s]; None where it
+            does not (``reason`` says why).
         per_player_s: each player's landing time of the turn as authored (not clamped) [s], up to
             the first player where it did not land.
         reason: why it does not land (empty when it does).
@@ -130,7 +131,7 @@ def _landing_times(tr: Trajectory, kind: str, end_s: float, players: list[Player
         landed = _at_rest_in(rec, kind)
         if not landed[-1]:
             return tuple(times), (f"player {i}: ends lying {classify_lying(rec.root_pose[-1, 3:])}, "
-                                  f"{LANDING_WAIT_S:.1f} s after its last keyframe, not at rest {kind}")
+                                  f"its last goals held {LANDING_WAIT_S:.1f} s, not at rest {kind}")
         first_for_good = int(np.flatnonzero(~landed)[-1]) + 1 if not landed.all() else 0
         times.append(max(float(rec.t[first_for_good]), end_s))
     return tuple(times), ""
@@ -148,8 +149,8 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
     """A turn-over followed by a get-up the robot has, as one library motion, written if proven.
 
     The turn as :func:`landing` played it (a momentum turn-over's goals clamped into the
-    envelope) up to ``landed.landed_s``, the nominal body checked to lie at rest there, then a planned collision-free path (RRT-blossom, as
-    ``rise`` plans) from where the nominal model (``players[0]``) lies then to the get-up's start,
+    envelope) up to ``landed.landed_s``, the nominal body checked to lie at rest there, then a
+    planned collision-free path (RRT-blossom, as ``rise`` plans) from where the nominal model (``players[0]``) lies then to the get-up's start,
     held ``ARRIVAL_SETTLE_S``, then the get-up's rows exactly as proven on this robot (its
     retiming and adaptation included). Judged on the robustness ``players`` and proven on the
     ensemble as one motion (:func:`robot_rise.authoring.write.prove_for_library`). Writes its two
