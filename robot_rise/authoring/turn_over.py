@@ -62,7 +62,8 @@ class Landing:
         reason: why it does not land (empty when it does).
         start: the settled lying posture the turn starts from (None where it does not settle so).
         turn: the turn's targets from ``start``, its last goals held ``LANDING_WAIT_S`` (a momentum
-            turn-over's goals clamped into the envelope): what was played.
+            turn-over's goals clamped into the envelope: timed on the nominal body only, a corner
+            body still turning is the proof's to judge).
     """
 
     landed_s: float | None
@@ -172,7 +173,7 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
     # get-up's start: the landed limbs lie otherwise on every body (crossed feet, an arm under)
     rec = players[0].play(turned, hold_s=0.0)
     k = len(rec.t) - 1
-    if not _at_rest_in(rec, turn.lands)[k]:  # cut at the landing, replayed from rest: not what landing saw
+    if not _at_rest_in(rec, turn.lands)[k]:  # a guard: landing timed this very turn on this body
         return None, f"cut at its landing, the turn does not lie at rest {turn.lands} by {landed.landed_s:.2f} s"
     lying = Posture(robot.name, rec.root_pose[k, :3], rec.root_pose[k, 3:], dict(zip(robot.joint_names, np.clip(rec.q[k], robot.joint_lower, robot.joint_upper))))
     checker = ValidityChecker(robot, PROOF_SCENE)
