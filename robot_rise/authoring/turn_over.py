@@ -151,7 +151,8 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
 
     The turn as :func:`landing` played it (a momentum turn-over's goals clamped into the
     envelope) up to ``landed.landed_s``, the nominal body checked to lie at rest there, then a
-    planned collision-free path (RRT-blossom, as ``rise`` plans) from where the nominal model (``players[0]``) lies then to the get-up's start,
+    planned collision-free path (RRT-blossom, as ``rise`` plans) from where the nominal model
+    (``players[0]``) lies then to the get-up's start,
     held ``ARRIVAL_SETTLE_S``, then the get-up's rows exactly as proven on this robot (its
     retiming and adaptation included). Judged on the robustness ``players`` and proven on the
     ensemble as one motion (:func:`robot_rise.authoring.write.prove_for_library`). Writes its two
