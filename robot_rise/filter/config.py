@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_rise.constants import ENVELOPE_MARGIN, TARGET_NOISE_RAD
+from robot_rise.constants import ENVELOPE_MARGIN, PROOF_HEADROOM, TARGET_NOISE_RAD
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 
 __all__ = ["FilterConfig"]
@@ -17,6 +17,9 @@ class FilterConfig:
     Attributes:
         envelope_margin: torque may use at most (1 - margin) of the torque-speed envelope
             (issue 6 default 10 %).
+        proof_headroom: ``dynamics_filter`` proves within (1 - margin - headroom) of the envelope;
+            ``check`` and ``prove`` judge (1 - margin). So a verdict the filter reached keeps under
+            ``check``'s fresh target noise (``robot_rise.constants.PROOF_HEADROOM``).
         self_penetration_tolerance_m: self contact deeper than this is a collision; shallower
             is touching (the validity checker's tolerance, so planner and filter agree).
         min_zmp_margin_m: the ZMP must stay this far inside the support polygon while on feet [m].
@@ -70,6 +73,7 @@ class FilterConfig:
     """
 
     envelope_margin: float = ENVELOPE_MARGIN
+    proof_headroom: float = PROOF_HEADROOM
     self_penetration_tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M
     min_zmp_margin_m: float = 0.0
     balance_tolerance_m: float = 0.005
