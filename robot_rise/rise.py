@@ -416,10 +416,15 @@ def _rise_candidates(
                 tr = quick.trajectory.with_report(attempts=[a.describe() for a in attempts], seconds=attempts[-1].seconds, robustness={})
                 return RiseResult(True, tr, tuple(attempts), "", quick)
             continue
-        commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=filter_config.blend_s)
-        commanded = commanded.with_report(**_join_report(planned.trajectory, conn))
-        result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
-                                 ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
+        # the short step first (0.2 s sooner); the settling pause where the body needs it (a slope)
+        blends = [b for b in (filter_config.quick_blend_s, filter_config.blend_s) if b is not None]
+        for blend_s in sorted(set(blends)):
+            commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=blend_s)
+            commanded = commanded.with_report(**_join_report(planned.trajectory, conn), blend_s=blend_s)
+            result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
+                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
+            if result.proven:
+                break
         if not result.proven and planned.smoothed is not None and _approach_off_plan(result, len(planned.trajectory.t)):
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
             say(f"filtering {conn.motion} with the cautious approach timing")

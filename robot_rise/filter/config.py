@@ -40,7 +40,9 @@ class FilterConfig:
             longer, at 2 rad/s. Where the plan ends on the frame the step is a pause; 0.1 s
             makes every flat-ground rise 0.2 s sooner (issue 17, BENCHMARKS.md) but a prone start
             on the 10 deg slope then falls (sim_tests/test_environments.py): the pause lets the
-            body settle before the motion, so it stays 0.3 s.
+            body settle before the motion, so it stays 0.3 s where ``quick_blend_s`` does not prove.
+        quick_blend_s: ``rise`` first joins each candidate's plan to its motion with this shorter
+            step and, where that is not proven, with ``blend_s`` (None: ``blend_s`` only).
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].
@@ -84,6 +86,7 @@ class FilterConfig:
     slow_factor: float = 1.6
     window_pad_s: float = 0.15
     blend_s: float = 0.3
+    quick_blend_s: float | None = 0.1
     max_iterations: int = 6
     hold_s: float = 3.0
     max_duration_s: float = 30.0
