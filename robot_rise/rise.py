@@ -418,7 +418,7 @@ def _rise_candidates(
             continue
         # the short step first (0.2 s sooner); the settling pause where the body needs it (a slope)
         blends = [b for b in (filter_config.quick_blend_s, filter_config.blend_s) if b is not None]
-        for blend_s in sorted(set(blends)):
+        for blend_s in dict.fromkeys(blends):  # in this order, once each
             commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=blend_s)
             commanded = commanded.with_report(**_join_report(planned.trajectory, conn), blend_s=blend_s)
             result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
@@ -431,7 +431,8 @@ def _rise_candidates(
             cautious = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
                                            planned.trajectory.report)
             slow = join_with_blend(cautious, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
-                **commanded.report, plan_duration_s=cautious.duration_s, plan_rows=len(cautious.t), approach_timing="cautious")
+                **commanded.report, plan_duration_s=cautious.duration_s, plan_rows=len(cautious.t), approach_timing="cautious",
+                blend_s=filter_config.blend_s)
             again = dynamics_filter(robot, slow, scene=scene, config=motion_config, start=start,
                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
             if again.proven:
@@ -594,10 +595,11 @@ def _rise_again_from_where_it_fell(
     limits = command_limits_for(robot)
     combined = conform(join_with_blend(stage1, again.trajectory, 0, blend_s=filter_config.blend_s), limits)
     player = Player(robot, scene)
-    rec, verdict, proof = prove(robot, combined, scene=scene, config=filter_config, player=player, start=first.start)
+    proving = filter_config.proving()  # as the filter proves: headroom under check's bound
+    rec, verdict, proof = prove(robot, combined, scene=scene, config=proving, player=player, start=first.start)
     noise: dict[str, Any] = {}
     if proof.proven and filter_config.noise_replays > 0:  # the fall is where a landing is most sensitive
-        checked = noise_check(combined, rec, player, start=first.start, config=filter_config)[0]
+        checked = noise_check(combined, rec, player, start=first.start, config=proving)[0]
         proof, noise = with_noise(proof, checked), {NOISE_CHECK_KEY: checked.to_dict()}
     recs: list = []
     if proof.proven and filter_config.ensemble:

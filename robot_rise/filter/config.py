@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from robot_rise.constants import ENVELOPE_MARGIN, PROOF_HEADROOM, TARGET_NOISE_RAD
@@ -19,7 +20,9 @@ class FilterConfig:
             (issue 6 default 10 %).
         proof_headroom: ``dynamics_filter`` proves within (1 - margin - headroom) of the envelope;
             ``check`` and ``prove`` judge (1 - margin). So a verdict the filter reached keeps under
-            ``check``'s fresh target noise (``robot_rise.constants.PROOF_HEADROOM``).
+            ``check``'s fresh target noise (``robot_rise.constants.PROOF_HEADROOM``). Library
+            motions' own proofs (authoring, the composed proof's start proofs) judge (1 - margin):
+            the shipped ones peak at 0.79-0.85.
         self_penetration_tolerance_m: self contact deeper than this is a collision; shallower
             is touching (the validity checker's tolerance, so planner and filter agree).
         min_zmp_margin_m: the ZMP must stay this far inside the support polygon while on feet [m].
@@ -100,3 +103,8 @@ class FilterConfig:
     noise_hold_s: float = 0.5
     noise_seed: int = 0
     noise_rounds: int = 2
+
+    def proving(self) -> FilterConfig:
+        """This configuration as the filter proves with it: the headroom taken off the bound
+        (``envelope_margin + proof_headroom``, no headroom left to add again)."""
+        return dataclasses.replace(self, envelope_margin=self.envelope_margin + self.proof_headroom, proof_headroom=0.0)

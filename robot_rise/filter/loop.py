@@ -6,7 +6,8 @@ strength is its servos', so here the "tracking controller" is the servo model it
 targets ARE what the servos receive) and the filter reshapes the targets, never the physics:
 
 1. join the planned path to the library motion from the connecting frame on, the step between
-   them taking at least ``blend_s`` (000 section 4.3);
+   them taking at least the caller's blend (``rise``: ``quick_blend_s``, then ``blend_s``; 000
+   section 4.3);
 2. play it through the servo model (robot_rise.sim.player) from the start posture;
 3. find violations: torque beyond (1 - margin - headroom) of the torque-speed envelope (the
    headroom keeps ``check``'s verdict, at 1 - margin, under fresh target noise; dissertation 003
@@ -146,7 +147,7 @@ def dynamics_filter(
     """
     start = start or commanded.start
     # proven with headroom under the bound `check` judges: a fresh noise draw keeps the verdict
-    config = dataclasses.replace(config, envelope_margin=config.envelope_margin + config.proof_headroom, proof_headroom=0.0)
+    config = config.proving()
     player = Player(robot, scene)
     if config.ensemble and ensemble is None:
         ensemble = EnsembleReplayer(robot, scene)
