@@ -160,6 +160,7 @@ def test_a_prone_robot_with_its_face_on_the_beam_rises_on_the_nominal_model(robo
     assert all("variant 'collision shapes" in p for p in proof.problems), proof.problems
 
 
+@pytest.mark.slow  # 70 s, over the default suite's 10 minutes; `make test-slow` runs it
 def test_a_prone_robot_on_the_slope_rises_with_its_stance_turned_to_the_slope(robot):  # paper 000 Fig. 13
     kind, start = environment_postures(robot, "slope", 2, 0)[1]
     assert kind == "prone"
