@@ -583,12 +583,33 @@ def _rise_again_from_where_it_fell(
     if not context.checker.is_valid(fallen):
         return None
     log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
-    again = rise(
-        robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, filter_config=filter_config,
-        progress=progress, context=context, retries=retries, candidate_rank=candidate_rank,
-    )
-    if not again.proven or again.trajectory is None:
-        return None
+    tried: list[RiseAttempt] = []
+    # the quickest get-up from where it fell first; where that is not proven whole (from the
+    # original start, after the fall), the nearest motions', the safest joins
+    for rank in dict.fromkeys((candidate_rank, "distance")):
+        again = rise(
+            robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, filter_config=filter_config,
+            progress=progress, context=context, retries=retries, candidate_rank=rank,
+        )
+        tried.extend(again.attempts)
+        if again.proven and again.trajectory is not None:
+            combined = _after_the_fall(robot, failed, again, scene=scene, filter_config=filter_config, context=context)
+            if combined is not None:
+                return RiseResult(True, combined, tuple(tried), "", again.filter_result)
+    return None
+
+
+def _after_the_fall(
+    robot: Robot,
+    failed: FilterResult,
+    again: RiseResult,
+    *,
+    scene: str | os.PathLike[str] | None,
+    filter_config: FilterConfig,
+    context: RiseContext,
+) -> Trajectory | None:
+    """The failed attempt, its hold and the new rise as one trajectory, proven from the original
+    start (None where it is not)."""
     first = failed.trajectory
     held_until = first.duration_s + filter_config.hold_s
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
@@ -610,11 +631,10 @@ def _rise_again_from_where_it_fell(
         return None
     # the combined motion's proof, limits and predicted positions replace the second rise's
     entries = {**proof.to_dict(), **noise, COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
-    tr = combined.with_report(
+    return combined.with_report(
         **{k: v for k, v in again.trajectory.report.items() if k not in entries and k != NOISE_CHECK_KEY},
         **entries,
         recovery={"first_attempt_until_s": held_until, "first_attempt": failed.reason, "then": again.trajectory.report.get("motion")},
     )
-    return RiseResult(True, tr, again.attempts, "", again.filter_result)
 
 

@@ -170,16 +170,20 @@ def test_mirror_swaps_sides_in_roles_and_the_op3_roles_mirror_its_joints() -> No
     assert goals[right] == -goals[left[0]]
 
 
-def test_side_motions_are_mirror_images() -> None:
-    """right_tip_elbow_knees is authored as the mirror of left_tip_elbow_knees: their starts mirror too."""
-    if not {"left_tip_elbow_knees", "right_tip_elbow_knees"} <= set(NAMES):
-        pytest.skip("side motions not in the library")
+@pytest.mark.parametrize("left_name, right_name", [("left_tip_elbow_knees", "right_tip_elbow_knees"),
+                                                   ("supine_roll_elbow_knees", "supine_roll_right_elbow_knees")])
+def test_mirrored_motions_are_mirror_images(left_name: str, right_name: str) -> None:
+    """The right tip and the roll over the right side are authored as mirrors of their left twins
+    (``mirror_role_values`` on every keyframe): their starts and their timing mirror too."""
+    if not {left_name, right_name} <= set(NAMES):
+        pytest.skip("mirrored motions not in the library")
     from robot_rise.roles import mirror_role_values
 
-    left, right = LIBRARY.get("left_tip_elbow_knees").start, LIBRARY.get("right_tip_elbow_knees").start
-    mirrored = ROBOT.roles.joint_goals(mirror_role_values(ROBOT.roles.role_values(dict(left.joints))))
-    for j, v in right.joints.items():
+    left, right = LIBRARY.get(left_name), LIBRARY.get(right_name)
+    mirrored = ROBOT.roles.joint_goals(mirror_role_values(ROBOT.roles.role_values(dict(left.start.joints))))
+    for j, v in right.start.joints.items():
         assert v == pytest.approx(mirrored[j], abs=0.02), j
+    assert right.duration_s == pytest.approx(left.duration_s, abs=0.02)
 
 
 def test_index_reports_each_motions_true_duration() -> None:
@@ -382,8 +386,14 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
                 per_motion.append(float(expected[r[np.argmin(d[r])]]))
         assert expected[first] == pytest.approx(min(per_motion))
         assert expected[first] >= LIBRARY.get(by_time[0].motion).trajectory.duration_s - by_time[0].time_s
-        # the nearest is tried first or second; no motion twice; as many candidates as by distance
-        assert (by_distance[0].motion, by_distance[0].frame) in [(c.motion, c.frame) for c in by_time[:2]]
+        # a momentum motion first (its own max_stretch) is followed by the quickest without one;
+        # then the nearest; no motion twice; as many candidates as by distance
+        lead = next(n for n, c in enumerate(by_time) if LIBRARY.get(c.motion).max_stretch is None)
+        assert all(LIBRARY.get(c.motion).max_stretch is not None for c in by_time[:lead])
+        assert (by_distance[0].motion, by_distance[0].frame) in [(c.motion, c.frame) for c in by_time[:lead + 2]]
+        if name == "supine_backroll_kneel":  # the sit-up is the quickest from the back, the roll the quickest without a timing window
+            assert [c.motion for c in by_time[:lead + 1]][0] == "supine_situp_rock_robust"
+            assert LIBRARY.get(by_time[lead].motion).duration_s < LIBRARY.get("supine_backroll_kneel").duration_s
         assert len({c.motion for c in by_time}) == len(by_distance) == len(by_time)
         if name == "left_tip_elbow_knees":  # the quick side motion (it tips onto the front itself) comes first; joining
             # the quick prone motion by rolling onto the front (beyond the turn reach of other kinds) is still a candidate

@@ -195,3 +195,22 @@ def test_a_momentum_motion_joined_where_it_is_fragile_is_refused_by_its_combined
     assert result.trajectory.report["motion"] != situp.name and len(proof.ensemble) == len(ENSEMBLE)
     replayed = EnsembleReplayer(robot, "flat", variants=combined_variants(8)).replay(result.trajectory, config=FilterConfig())[0]
     assert replayed.all_stand, replayed.failures()
+
+
+@pytest.mark.slow
+def test_a_start_every_candidate_fails_from_rises_again_from_where_it_fell(robot):
+    """OP3, seed 1, right-side posture 27 of the 300-posture protocol: every approach lets it fall
+    onto its back; rise rises again from there and proves the whole (the failed attempt, its hold,
+    the new rise) from the original start. From where it fell the quickest get-up, proven alone,
+    is not proven whole (a noisy replay of the combined targets peaks at the bound): the nearest
+    motions' rise is tried next, and proven (40 s)."""
+    posture = sample_lying(robot, "right", 28, seed=1).postures[27]
+    result = rise(robot, posture, seed=1)
+    assert result.proven, result.reason
+    tr = result.trajectory
+    assert tr.report["recovery"]["first_attempt"].startswith("not standing")
+    assert tr.report["proven"] is True and posture_to_dict(tr.start) == posture_to_dict(posture)
+    proven_alone = [a.motion for a in result.attempts if a.proven]
+    assert len(proven_alone) == 2 and tr.report["recovery"]["then"] == proven_alone[-1] != proven_alone[0]
+    _, verdict, again = prove(robot, tr)
+    assert again.proven and verdict.standing
