@@ -81,3 +81,21 @@ def test_that_the_default_profile_limits_jerk_at_the_cost_of_one_window(robot):
 
     assert peak_jerk(smooth) < 0.25 * peak_jerk(plain)
     assert smooth.max_velocity_ratio <= 1 + 1e-6 and smooth.max_accel_ratio <= 1 + 1e-6
+
+
+def test_that_the_spacing_of_a_paths_samples_does_not_slow_it(robot):
+    """A smoothed curve's samples are unevenly spaced; the path is timed by its length, so a
+    straight move sampled at alternating spacings takes as long as the same move in one step
+    (timed by the waypoint index, each change of spacing was a velocity jump slowed for)."""
+    lim = TimingLimits(np.full(robot.n_joints, 2.0), np.full(robot.n_joints, 8.0))
+    steps = np.tile([0.001] * 8 + [0.008] * 8, 14)[:190]  # 1.0 rad in 190 uneven steps
+    steps *= 1.0 / steps.sum()
+    joints = np.zeros((steps.size + 1, robot.n_joints))
+    joints[:, 3] = np.concatenate([[0.0], np.cumsum(steps)])
+    joints[:, 5] = -0.5 * joints[:, 3]
+    uneven = time_parameterize(_seq(robot, joints), robot, limits=lim)
+    even = time_parameterize(_seq(robot, joints[[0, -1]]), robot, limits=lim)
+    assert uneven.duration_s == pytest.approx(even.duration_s, rel=0.03)
+    vr, ar = measured_rates(uneven.t, uneven.root, uneven.joints, lim)
+    assert vr <= 1.0 + 1e-6 and ar <= 1.0 + 1e-6
+    np.testing.assert_allclose(uneven.joints[-1], joints[-1], atol=1e-9)

@@ -7,10 +7,15 @@ torque-speed envelope: near time-optimal for unloaded limbs, the filter slowing 
 and find the fastest progress along the path that keeps all of them (path-velocity
 decomposition, Bobrow / Shin & McKay; the classic forward-backward pass over the waypoints):
 
-1. the path is densified so that no joint moves more than ``max_step_rad`` per segment;
-2. per segment i, the path speed s' (segments per second) is capped by every axis:
-   s' <= v_j / |dq_ij|, and the path acceleration by s'' <= a_j / |dq_ij|;
-3. at each knot the change of direction caps the speed too (|d2q_ij| s'^2 <= a_j);
+1. the path is densified so that no joint moves more than ``max_step_rad`` per segment, and
+   parameterised by its length s (each segment's largest step in units of the densification
+   step): a smoothed curve's samples are unevenly spaced, and with the waypoint index as s every
+   change of spacing was a velocity jump the corner cap below slowed the body for (OP3 prone
+   approaches timed at 1.2-1.8x their length's time);
+2. per segment i, of length L_i and direction u_i = dq_i / L_i, the path speed s' is capped by
+   every axis: s' <= v_j / |u_ij|, and the path acceleration by s'' <= a_j / |u_ij|;
+3. at each knot the change of direction caps the speed too (|u_i - u_i-1|_j s'^2 <= a_j L, L the
+   mean of the two segments' lengths);
    a forward pass (accelerate from rest) and a backward pass (decelerate to rest) give the knot
    speeds; constant s'' within a segment gives its duration: a trapezoidal profile in the
    large, since cruise segments run at the cap;
@@ -204,41 +209,47 @@ def time_parameterize(
     dp = np.linalg.norm(np.diff(pos, axis=0), axis=1)
     da = 2.0 * quat_angle(quat[:-1], quat[1:])
     tiny = 1e-12
+    # each segment's length: its largest step in units of the densification step (<= 1)
+    length = np.maximum.reduce([np.max(dq, axis=1, initial=0.0) / max_step_rad, da / max_step_rad, dp / max_step_m, np.full(k - 1, tiny)])
     with np.errstate(divide="ignore"):
-        vmax = np.minimum.reduce([
+        vmax = length * np.minimum.reduce([
             np.min(lim.joint_velocity_rad_s / np.maximum(dq, tiny), axis=1),
             lim.root_velocity_m_s / np.maximum(dp, tiny),
             lim.root_angular_velocity_rad_s / np.maximum(da, tiny),
         ])
-        amax = np.minimum.reduce([
+        amax = length * np.minimum.reduce([
             np.min(lim.joint_accel_rad_s2 / np.maximum(dq, tiny), axis=1),
             lim.root_accel_m_s2 / np.maximum(dp, tiny),
             lim.root_angular_accel_rad_s2 / np.maximum(da, tiny),
         ])
-    # knot speeds (segments/s): forward then backward pass, each segment has length 1 in s
+    # knot speeds (length per second): forward then backward pass
     v = np.zeros(k)
-    # a corner at knot i changes the axis velocities by |d2q_i| s' within ~1/s' seconds, so
-    # |d2q_ij| s'^2 <= a_j (the discrete centripetal term the plain pass ignores)
-    d2q = np.abs(np.diff(np.diff(q, axis=0), axis=0))
-    d2p = np.linalg.norm(np.diff(np.diff(pos, axis=0), axis=0), axis=1)
+    # a corner at knot i changes the axis velocities by |u_i - u_i-1| s' within ~L/s' seconds, so
+    # |u_i - u_i-1|_j s'^2 <= a_j L (the discrete centripetal term the plain pass ignores)
+    u = np.diff(q, axis=0) / length[:, None]
+    up = np.diff(pos, axis=0) / length[:, None]
+    du = np.abs(np.diff(u, axis=0))
+    dup = np.linalg.norm(np.diff(up, axis=0), axis=1)
+    mean_len = 0.5 * (length[:-1] + length[1:])
     with np.errstate(divide="ignore"):
-        corner = np.sqrt(np.minimum(
-            np.min(lim.joint_accel_rad_s2 / np.maximum(d2q, tiny), axis=1) if q.shape[1] else np.inf,
-            lim.root_accel_m_s2 / np.maximum(d2p, tiny),
+        corner = np.sqrt(mean_len * np.minimum(
+            np.min(lim.joint_accel_rad_s2 / np.maximum(du, tiny), axis=1) if q.shape[1] else np.inf,
+            lim.root_accel_m_s2 / np.maximum(dup, tiny),
         ))
     cap = np.concatenate([[0.0], np.minimum.reduce([vmax[:-1], vmax[1:], corner]), [0.0]])
     for i in range(k - 1):
-        v[i + 1] = min(cap[i + 1], np.sqrt(v[i] ** 2 + 2.0 * amax[i]))
+        v[i + 1] = min(cap[i + 1], np.sqrt(v[i] ** 2 + 2.0 * amax[i] * length[i]))
     for i in range(k - 2, -1, -1):
-        v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2.0 * amax[i]))
-    seg_t = np.array([_segment_time(v[i], v[i + 1], vmax[i], amax[i]) for i in range(k - 1)])
+        v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2.0 * amax[i] * length[i]))
+    seg_t = np.array([_segment_time(v[i], v[i + 1], vmax[i], amax[i], length[i]) for i in range(k - 1)])
     knots_t = np.concatenate([[0.0], np.cumsum(seg_t)])
-    smooth_t, smooth_s = _jerk_limited(knots_t, v, vmax, amax, jerk_window_s)
+    knots_s = np.concatenate([[0.0], np.cumsum(length)])
+    smooth_t, smooth_s = _jerk_limited(knots_t, knots_s, v, vmax, amax, jerk_window_s)
     scale = 1.0
     for _ in range(20):
         t_out = _row_times(float(smooth_t[-1]) * scale, sample_period_s)
-        s_out = np.clip(np.interp(t_out / scale, smooth_t, smooth_s), 0.0, k - 1)
-        root, joints = _at_progress(s_out, pos, quat, q)
+        s_out = np.clip(np.interp(t_out / scale, smooth_t, smooth_s), 0.0, knots_s[-1])
+        root, joints = _at_progress(s_out, knots_s, pos, quat, q)
         vr, ar = measured_rates(t_out, root, joints, lim)
         need = max(vr, np.sqrt(ar))
         if need <= 1.0 + 1e-6:
@@ -262,7 +273,8 @@ def integrated_squared_jerk(t: np.ndarray, q: np.ndarray) -> float:
     return float(np.sum(jerk * jerk) * dt)
 
 
-def _jerk_limited(knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+def _jerk_limited(knots_t: np.ndarray, knots_s: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+                  window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Progress s(t) of the trapezoidal profile with its speed averaged over ``window_s``.
 
     A moving average of the path speed keeps every speed and acceleration bound of the trapezoid
@@ -271,12 +283,12 @@ def _jerk_limited(knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np
     by one window.
 
     Returns:
-        (t, s): times [s] and progress [segments], fine-grained (1 ms), s from 0 to the last knot.
+        (t, s): times [s] and progress [path length], fine-grained (1 ms), s from 0 to the path's end.
     """
     total = float(knots_t[-1])
     n = max(2, int(np.ceil(total / _FINE_DT_S)) + 1)
     fine_t = np.linspace(0.0, total, n)
-    s = _progress(fine_t, knots_t, v, vmax, amax)
+    s = _progress(fine_t, knots_t, knots_s, v, vmax, amax)
     dt = fine_t[1] - fine_t[0]
     w = int(round(window_s / dt)) if window_s > 0 else 0
     if w < 2:
@@ -291,13 +303,13 @@ def _jerk_limited(knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np
 _FINE_DT_S = 0.001  # resolution of the jerk-limited progress curve [s]
 
 
-def _segment_time(v0: float, v1: float, vmax: float, amax: float) -> float:
-    """Duration of a unit-length segment from speed v0 to v1 with |s''| <= amax, s' <= vmax (trapezoid)."""
+def _segment_time(v0: float, v1: float, vmax: float, amax: float, length: float) -> float:
+    """Duration of a segment of ``length`` from speed v0 to v1 with |s''| <= amax, s' <= vmax (trapezoid)."""
     # peak speed reachable in the segment
-    vp = min(vmax, np.sqrt(amax + 0.5 * (v0**2 + v1**2)))
+    vp = min(vmax, np.sqrt(amax * length + 0.5 * (v0**2 + v1**2)))
     d_acc = (vp**2 - v0**2) / (2 * amax)
     d_dec = (vp**2 - v1**2) / (2 * amax)
-    cruise = max(0.0, 1.0 - d_acc - d_dec)
+    cruise = max(0.0, length - d_acc - d_dec)
     return float((vp - v0) / amax + (vp - v1) / amax + (cruise / vp if vp > 0 else 0.0))
 
 
@@ -306,12 +318,13 @@ def _row_times(total: float, period: float) -> np.ndarray:
     return np.linspace(0.0, total, n + 1)
 
 
-def _progress(t: np.ndarray, knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
-    """Path progress s (segments) at times t: the exact trapezoid of each segment."""
+def _progress(t: np.ndarray, knots_t: np.ndarray, knots_s: np.ndarray, v: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+    """Path progress s (path length) at times t: the exact trapezoid of each segment."""
     i = np.clip(np.searchsorted(knots_t, t, side="right") - 1, 0, len(knots_t) - 2)
     tau = np.clip(t - knots_t[i], 0.0, None)
     v0, v1, a, vm = v[i], v[i + 1], amax[i], vmax[i]
-    vp = np.minimum(vm, np.sqrt(a + 0.5 * (v0**2 + v1**2)))
+    length = knots_s[i + 1] - knots_s[i]
+    vp = np.minimum(vm, np.sqrt(a * length + 0.5 * (v0**2 + v1**2)))
     t_acc = (vp - v0) / a
     t_dec = (vp - v1) / a
     seg = knots_t[i + 1] - knots_t[i]
@@ -320,13 +333,13 @@ def _progress(t: np.ndarray, knots_t: np.ndarray, v: np.ndarray, vmax: np.ndarra
     d_cru = vp * np.clip(tau - t_acc, 0.0, t_cru)
     td = np.clip(tau - t_acc - t_cru, 0.0, t_dec)
     d_dec = vp * td - 0.5 * a * td**2
-    return np.minimum(i + np.clip(d_acc + d_cru + d_dec, 0.0, 1.0), len(knots_t) - 1)
+    return np.minimum(knots_s[i] + np.clip(d_acc + d_cru + d_dec, 0.0, length), knots_s[-1])
 
 
-def _at_progress(s: np.ndarray, pos: np.ndarray, quat: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Root (T, 7) and joints (T, n) at fractional waypoint index s (linear within a segment)."""
-    idx = np.clip(np.floor(s).astype(int), 0, len(q) - 2)
-    f = (s - idx)[:, None]
+def _at_progress(s: np.ndarray, knots_s: np.ndarray, pos: np.ndarray, quat: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Root (T, 7) and joints (T, n) at path length s (linear within a segment)."""
+    idx = np.clip(np.searchsorted(knots_s, s, side="right") - 1, 0, len(q) - 2)
+    f = np.clip((s - knots_s[idx]) / (knots_s[idx + 1] - knots_s[idx]), 0.0, 1.0)[:, None]
     joints = q[idx] + f * (q[idx + 1] - q[idx])
     p = pos[idx] + f * (pos[idx + 1] - pos[idx])
     qa, qb = quat[idx], quat[idx + 1]
