@@ -77,7 +77,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-DEFAULT_CANDIDATES = 3  # library motions tried: the quickest, then the two nearest (connection_candidates)
+DEFAULT_CANDIDATES = 3  # library motions tried: the quickest, then the two nearest; one more after a motion with a timing window (connection_candidates)
 DEFAULT_RETRIES = 1  # new rises from where a failed attempt left the robot lying
 DEFAULT_CANDIDATE_RANK = "duration"  # the quickest expected get-up first, the nearest next (issue 17; connection_candidates)
 RECOVERY_MAX_JOINT_SPEED = 0.5  # [rad/s] the robot must be at rest to count as lying there
@@ -584,18 +584,20 @@ def _rise_again_from_where_it_fell(
         return None
     log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
     tried: list[RiseAttempt] = []
-    # the quickest get-up from where it fell first; where that is not proven whole (from the
-    # original start, after the fall), the nearest motions', the safest joins
+    # the quickest get-up from where it fell first; where that is proven alone but not whole (from
+    # the original start, after the fall), the nearest motions', the safest joins (where nothing
+    # was proven alone, they were among the candidates already)
     for rank in dict.fromkeys((candidate_rank, "distance")):
         again = rise(
             robot, fallen, scene=scene, seed=seed + 1, budget_s=budget_s, candidates=candidates, filter_config=filter_config,
             progress=progress, context=context, retries=retries, candidate_rank=rank,
         )
         tried.extend(again.attempts)
-        if again.proven and again.trajectory is not None:
-            combined = _after_the_fall(robot, failed, again, scene=scene, filter_config=filter_config, context=context)
-            if combined is not None:
-                return RiseResult(True, combined, tuple(tried), "", again.filter_result)
+        if not again.proven or again.trajectory is None:
+            return None
+        combined = _after_the_fall(robot, failed, again, scene=scene, filter_config=filter_config, context=context)
+        if combined is not None:
+            return RiseResult(True, combined, tuple(tried), "", again.filter_result)
     return None
 
 

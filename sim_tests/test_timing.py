@@ -99,3 +99,17 @@ def test_that_the_spacing_of_a_paths_samples_does_not_slow_it(robot):
     vr, ar = measured_rates(uneven.t, uneven.root, uneven.joints, lim)
     assert vr <= 1.0 + 1e-6 and ar <= 1.0 + 1e-6
     np.testing.assert_allclose(uneven.joints[-1], joints[-1], atol=1e-9)
+
+
+def test_that_a_repeated_waypoint_neither_stops_nor_breaks_the_timing(robot):
+    lim = TimingLimits(np.full(robot.n_joints, 2.0), np.full(robot.n_joints, 8.0))
+    joints = np.zeros((3, robot.n_joints))
+    joints[1:, 3] = 1.0
+    once = time_parameterize(_seq(robot, joints[[0, 1]]), robot, limits=lim)
+    for path in (joints, joints[[0, 0, 1]]):  # repeated at the end, at the start
+        timed = time_parameterize(_seq(robot, path), robot, limits=lim)
+        assert timed.duration_s == pytest.approx(once.duration_s, rel=1e-6)
+        assert np.all(np.isfinite(timed.joints)) and timed.joints[-1, 3] == 1.0
+    middle = np.zeros((4, robot.n_joints))
+    middle[1:3, 3], middle[3, 3] = 0.5, 1.0  # repeated halfway: no stop there
+    assert time_parameterize(_seq(robot, middle), robot, limits=lim).duration_s == pytest.approx(once.duration_s, rel=0.02)

@@ -59,7 +59,9 @@ def dense_output(
     The shared timing (timing.py) caps the speed at each knot by the change of direction there;
     frames ``frame_spacing_rad`` apart, densified linearly by the timing or the smoother's curve
     into 2-3 steps each, make a bend every few knots and the speed oscillates (issue 7:
-    arm under the back, J x D^5 11x that of the same frames written 5x denser). Two dense
+    arm under the back, J x D^5 11x that of the same frames written 5x denser; measured when the
+    timing's path parameter was the waypoint index, so uneven spacing bent it too: since
+    2026-12-03 it is the path length, and only the frames' own bends remain). Two dense
     versions of the frames, both ``spacing_rad`` apart or closer (scaled tangent norm):
 
     - the frames' polyline resampled (``resample_path``): legal, as the frames' segments are;
