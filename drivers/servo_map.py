@@ -40,10 +40,13 @@ class BusSpec:
     Attributes:
         baud_rate: [bit/s].
         return_delay_time_us: servo reply delay [us] (control table unit is 2 us).
+        supply_voltage_v: the servos' supply [V] (e.g. 14.8 for a 4S LiPo): what the robot's
+            simulation models them at (robot_rise.model reads the same key).
     """
 
     baud_rate: int = 1_000_000
     return_delay_time_us: float = 0.0
+    supply_voltage_v: float = 12.0
 
     def __post_init__(self) -> None:
         if self.baud_rate not in _SUPPORTED_BAUDS:
@@ -53,6 +56,8 @@ class BusSpec:
             )
         if not 0 <= self.return_delay_time_us <= 508:
             raise ServoMapError(f"return_delay_time_us {self.return_delay_time_us} outside 0..508")
+        if not 5.0 <= self.supply_voltage_v <= 30.0:
+            raise ServoMapError(f"supply_voltage_v {self.supply_voltage_v} outside 5..30 V")
 
     @property
     def baud_index(self) -> int:
@@ -259,6 +264,7 @@ def parse_servo_map(data: Mapping[str, object], *, source: str = "servo map") ->
     bus = BusSpec(
         baud_rate=int(bus_raw.get("baud_rate", 1_000_000)),
         return_delay_time_us=float(bus_raw.get("return_delay_time_us", 0.0)),
+        supply_voltage_v=float(bus_raw.get("supply_voltage_v", 12.0)),
     )
     rows = data.get("servo")
     if not isinstance(rows, list):

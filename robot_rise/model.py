@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import math
 import os
 import tomllib
 from dataclasses import dataclass, field
@@ -50,7 +51,8 @@ SERVOS_FORMAT = "robot-rise/servos@1"
 GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are obstacles
 GEOM_ROBOT, GEOM_GROUND, GEOM_OBSTACLE = 0, 1, 2  # ModelIndex.geom_kind values
 SIM_TIMESTEP_S = 0.002  # physics step: 500 Hz (issue 4 asks for >= 500 Hz)
-SUPPLY_VOLTAGE_V = 12.0  # servo supply the actuators are modelled at
+SUPPLY_VOLTAGE_V = 12.0  # servo supply a robot is modelled at unless its servo map gives one ([bus] supply_voltage_v)
+_SUPPLY_RANGE_V = (5.0, 30.0)  # Dynamixels run on 5-24 V (XL330 5 V to MX/XH 14.8 V 4S LiPo, 24 V Pro): a typo guard
 _ATTACH_PREFIX = "robot_rise:"
 
 
@@ -89,6 +91,8 @@ class Robot:
             (``configs/motions/<library>``); a retargeted variant keeps its source robot's library
             (paper 000 section 5.3).
         roles: joint roles (``[roles]`` of robot.toml, :mod:`robot_rise.roles`); None if not given.
+        supply_voltage_v: the servos' supply [V] (servos.toml ``[bus] supply_voltage_v``): the
+            stall torque, no-load speed and position gain every simulation of this robot uses.
     """
 
     name: str
@@ -107,6 +111,7 @@ class Robot:
     keyframes: dict[str, np.ndarray] = field(default_factory=dict)
     library: str = ""
     roles: RoleMap | None = None
+    supply_voltage_v: float = SUPPLY_VOLTAGE_V
 
     @property
     def n_joints(self) -> int:
@@ -175,7 +180,7 @@ class Robot:
         """
         if not 0.0 <= speed_fraction < 1.0:
             raise ValueError(f"speed_fraction must lie in [0, 1), not {speed_fraction}")
-        stall = np.array([s.stall_torque_nm for s in self.servo_datasheets()])
+        stall = np.array([s.stall_torque_at(self.supply_voltage_v) for s in self.servo_datasheets()])
         return (1.0 - ENVELOPE_MARGIN) * (1.0 - speed_fraction) * stall / self.joint_inertia_kg_m2
 
     def digest(self) -> str:
@@ -315,7 +320,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) < 0:
             raise ConfigError(f"{root / 'robot.toml'}: site {s!r} is not in {xml_path.name}")
 
-    servos = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
+    servos, supply_v = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
     roles = _load_roles(root / "robot.toml", meta.get("roles"), joint_names)
 
     # Key qpos in the robot-alone model: root (7) then hinges in order (jnt_qposadr increasing).
@@ -339,6 +344,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         keyframes=keyframes,
         library=str(meta.get("library", meta.get("name", root.name))),
         roles=roles,
+        supply_voltage_v=supply_v,
     )
 
 
@@ -365,8 +371,16 @@ def _load_roles(path: Path, table: object, joint_names: tuple[str, ...]) -> Role
 
 def _load_servos(
     path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str, extra_catalog: Path
-) -> tuple[ServoAssignment, ...]:
+) -> tuple[tuple[ServoAssignment, ...], float]:
+    """The servo per joint, in joint order, and the supply voltage [V] of ``[bus]``."""
     data = _read_toml(path, SERVOS_FORMAT)
+    bus = data.get("bus", {})
+    try:
+        supply_v = float(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V)) if isinstance(bus, dict) else math.nan
+    except (TypeError, ValueError):
+        supply_v = math.nan
+    if not _SUPPLY_RANGE_V[0] <= supply_v <= _SUPPLY_RANGE_V[1]:
+        raise ConfigError(f"{path}: [bus] supply_voltage_v must be a number of volts in {_SUPPLY_RANGE_V[0]:g}..{_SUPPLY_RANGE_V[1]:g}, not {bus.get('supply_voltage_v') if isinstance(bus, dict) else bus!r}")
     rows = data.get("servo", [])
     by_joint: dict[str, ServoAssignment] = {}
     ids: set[int] = set()
@@ -400,7 +414,7 @@ def _load_servos(
     missing = [j for j in joint_names if j not in by_joint]
     if missing:
         raise ConfigError(f"{path}: no servo for joints {', '.join(missing)}")
-    return tuple(by_joint[j] for j in joint_names)
+    return tuple(by_joint[j] for j in joint_names), supply_v
 
 
 @dataclass(frozen=True)
@@ -469,7 +483,7 @@ def compose(
     scene: str | os.PathLike[str] | None = "flat",
     *,
     with_actuators: bool = True,
-    voltage_v: float = SUPPLY_VOLTAGE_V,
+    voltage_v: float | None = None,
     friction_scale: float = 1.0,
     mass_scale: float = 1.0,
 ) -> mujoco.MjModel:
@@ -481,7 +495,7 @@ def compose(
         with_actuators: add one Dynamixel position servo per joint (see robot_rise/servo.py):
             a position actuator with kp_eff and force range +-stall torque, plus back-EMF and gear
             damping, armature and friction loss on the joint.
-        voltage_v: servo supply voltage [V].
+        voltage_v: servo supply voltage [V] (None: the robot's own, ``Robot.supply_voltage_v``).
         friction_scale: multiplies every geom's sliding friction (robustness tests).
         mass_scale: multiplies every robot body's mass and inertia (robustness tests).
 
@@ -513,6 +527,8 @@ def compose(
             for f in fields:
                 if getattr(el, f).startswith(_ATTACH_PREFIX):
                     setattr(el, f, getattr(el, f)[len(_ATTACH_PREFIX) :])
+    if voltage_v is None:
+        voltage_v = robot.supply_voltage_v
     if with_actuators:
         for s, servo in zip(robot.servos, robot.servo_datasheets()):
             j = spec.joint(s.joint)

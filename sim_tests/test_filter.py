@@ -106,7 +106,7 @@ def test_a_slow_squat_still_stands_under_every_variant_of_the_ensemble(robot):
     result, _ = EnsembleReplayer(robot, "flat", threads=1).replay(tr)
     assert len(result.verdicts) == len(ENSEMBLE) >= 12 and result.all_stand, result.failures()
     # a robot with a third of its servo torque cannot hold a deep squat
-    assert not stands_under(robot, tr, ModelVariant("weak servos", voltage_v=4.0))
+    assert not stands_under(robot, tr, ModelVariant("weak servos", supply_scale=1.0 / 3.0))
 
 
 def test_a_replay_over_the_margin_by_the_join_stops_there_and_the_filter_still_slows_the_approach(robot):

@@ -86,6 +86,39 @@ def test_a_servo_map_naming_an_unknown_joint_is_rejected_with_the_joint_name(tmp
         load_robot(copy)
 
 
+def _with_supply(robot, tmp_path: Path, value: str):
+    copy = tmp_path / "supplied"
+    shutil.copytree(robot.directory, copy)
+    text = (copy / "servos.toml").read_text().replace("[bus]\n", f"[bus]\nsupply_voltage_v = {value}\n", 1)
+    (copy / "servos.toml").write_text(text)
+    return copy
+
+
+def test_the_servo_maps_supply_voltage_sets_the_servos_torque_and_a_variant_scales_it(tmp_path: Path, robot):
+    from robot_rise.sim.player import Player
+    from robot_rise.sim.variants import ENSEMBLE
+
+    four_cell = load_robot(_with_supply(robot, tmp_path, "14.8"))
+    assert robot.supply_voltage_v == 12.0 and four_cell.supply_voltage_v == 14.8
+    sheet = servo_datasheet(robot.servos[0].model)
+    nominal, strong = Player(robot, "flat"), Player(four_cell, "flat")
+    acts = strong.index.actuators
+    np.testing.assert_allclose(nominal.model.actuator_forcerange[acts, 1], sheet.stall_torque_at(12.0))
+    np.testing.assert_allclose(strong.model.actuator_forcerange[acts, 1], sheet.stall_torque_at(14.8))
+    np.testing.assert_allclose(strong.servos.no_load_speed_rad_s, sheet.no_load_speed_at(14.8))
+    low = next(v for v in ENSEMBLE if v.supply_scale != 1.0)  # the ensemble's low supply: relative to each robot's
+    weak = Player(four_cell, "flat", variant=low)
+    np.testing.assert_allclose(weak.model.actuator_forcerange[acts, 1], sheet.stall_torque_at(14.8 * low.supply_scale))
+    assert sheet.stall_torque_at(12.0) < weak.model.actuator_forcerange[acts[0], 1] < sheet.stall_torque_at(14.8)
+
+
+@pytest.mark.parametrize("value", ["48.0", '"twelve"'])
+def test_a_supply_voltage_that_no_servo_runs_on_is_one_line_naming_it(tmp_path: Path, robot, value):
+    with pytest.raises(ConfigError, match="supply_voltage_v must be a number of volts in 5..30") as e:
+        load_robot(_with_supply(robot, tmp_path, value))
+    assert "\n" not in str(e.value)
+
+
 def test_a_missing_robot_directory_is_a_config_error(tmp_path: Path):
     with pytest.raises(ConfigError, match="does not exist"):
         load_robot(tmp_path / "nowhere")

@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers import load_servo_map
 from robot_rise.errors import ConfigError
 from robot_rise.model import compose, load_robot, model_index
 from robot_rise.posture import stand_posture
@@ -111,12 +112,18 @@ def test_a_servo_map_gives_ids_models_and_limits(shared_robots, tmp_path: Path) 
     spec_rows = "\n".join(
         f'[[servo]]\nid = {10 + i}\njoint = "{j}"\nmodel = "MX-28"\ndirection = 1\nzero_offset = 0.0\nmin = -0.5\nmax = 0.5\n' for i, j in enumerate(joints)
     )
-    servos.write_text(f'format = "robot-rise/servos@1"\n\n{spec_rows}')
+    # the user's [bus] is their hardware too: baud rate and supply kept as given
+    servos.write_text(f'format = "robot-rise/servos@1"\n\n[bus]\nbaud_rate = 3000000\nsupply_voltage_v = 11.1\n\n{spec_rows}')
     result = import_robot(path, tmp_path / "bez1", servos=servos)
     robot = load_robot(result.directory)
     assert [s.id for s in robot.servos][:3] == [10 + joints.index(j) for j in robot.joint_names[:3]]
     knee = robot.joint_names.index(robot.roles.by_role()["left.knee"].joint)
     assert robot.joint_lower[knee] == pytest.approx(-0.5) and robot.joint_upper[knee] == pytest.approx(0.5)
+    assert robot.supply_voltage_v == 11.1
+    assert load_servo_map(result.directory / "servos.toml").bus.baud_rate == 3_000_000
+    # --supply-voltage overrides the map's
+    again = import_robot(path, tmp_path / "bez1_4s", servos=servos, supply_voltage_v=14.8)
+    assert load_robot(again.directory).supply_voltage_v == 14.8
 
 
 _NO_BASE = """<mujoco><worldbody><body name="torso" pos="0 0 1"><geom type="box" size=".1 .1 .1"/>

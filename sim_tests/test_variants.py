@@ -80,7 +80,7 @@ def test_that_random_variants_are_seeded_and_inside_the_ranges():
     r = VARIANT_RANGES
     for v in a:
         assert r.friction[0] <= v.friction <= r.friction[1]
-        assert r.voltage_v[0] <= v.voltage_v <= r.voltage_v[1]
+        assert r.supply_scale[0] <= v.supply_scale <= r.supply_scale[1]
         assert 1 - r.kp_spread <= v.kp_scale <= 1 + r.kp_spread
         assert abs(v.geom_grow_m) <= r.geom_grow_m and v.quantize_ticks
         assert v.latency_s in (0.0, 0.01, 0.02)
@@ -104,7 +104,7 @@ def test_that_a_variant_that_falls_unproves_the_proof_and_the_proof_keeps_every_
 
 
 def test_that_the_player_composes_the_variants_supply(robot):
-    low = Player(robot, "flat", variant=ModelVariant("v", voltage_v=11.1))
+    low = Player(robot, "flat", variant=ModelVariant("v", supply_scale=11.1 / 12.0))
     nominal = Player(robot, "flat")
     acts = nominal.index.actuators
     assert np.all(low.model.actuator_forcerange[acts, 1] < nominal.model.actuator_forcerange[acts, 1])

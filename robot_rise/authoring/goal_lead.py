@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
-from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.servo import servo_arrays
 from robot_rise.sim.player import Player, Recording
@@ -81,7 +81,7 @@ def clamp_goal_lead(
     Returns:
         the clamped trajectory (same rows, new goals; the first row unchanged). The caller verifies it.
     """
-    sv = servo_arrays(robot.servo_datasheets(), SUPPLY_VOLTAGE_V)
+    sv = servo_arrays(robot.servo_datasheets(), robot.supply_voltage_v)
     kp, stall, w0 = sv.kp_nm_per_rad, sv.stall_torque_nm, sv.no_load_speed_rad_s
     t = trajectory.t
     base = trajectory.q

@@ -21,7 +21,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from robot_rise.authoring.keyframes import Keyframe, build_trajectory
-from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player
 from robot_rise.sim.standing import judge
@@ -49,7 +49,7 @@ def speed_prescale(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...]
     The torque-speed envelope is zero at the no-load speed, so no servo can follow a goal moving
     faster; doing this kinematically (no simulation) gives :func:`retime` a start near the answer.
     """
-    w0 = np.array([s.no_load_speed_at(SUPPLY_VOLTAGE_V) for s in robot.servo_datasheets()])
+    w0 = np.array([s.no_load_speed_at(robot.supply_voltage_v) for s in robot.servo_datasheets()])
     goals = [k.joints for k in keyframes]
     dur = np.diff(np.array([0.0] + [k.t_s for k in keyframes]))
     for _ in range(passes):

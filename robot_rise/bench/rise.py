@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.filter import COMPOSED_KEY, Proof
-from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.model import Robot
 from robot_rise.rise import DEFAULT_CANDIDATE_RANK
 from robot_rise.sampling import sample_lying
 from robot_rise.sim.variants import ModelVariant
@@ -65,7 +65,7 @@ def bench_validity(
 BENCH_MODEL_VARIANTS: tuple[ModelVariant, ...] = (
     ModelVariant("mass -10%, friction 0.5", mass_scale=0.9, friction=0.5),
     ModelVariant("mass +10%, friction 1.2", mass_scale=1.1, friction=1.2),
-    ModelVariant("servo torque -15%", voltage_v=0.85 * SUPPLY_VOLTAGE_V),
+    ModelVariant("servo torque -15%", supply_scale=0.85),
     ModelVariant("one control period of latency", latency_s=0.01),
 )
 """Replays of each proven trajectory under model errors (issue 6), each combining two of the

@@ -47,6 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--servos", metavar="SERVOS.toml", help="your servo map (IDs, models, directions, offsets, limits)")
     src.add_argument("--servo-model", action="append", metavar="M|JOINT=M", help="write a template servo map: M for every joint, JOINT=M for one (repeat)")
     im.add_argument("--name", help="robot name (default: the model file's name)")
+    im.add_argument("--supply-voltage", type=float, metavar="V",
+                    help="the servos' supply in volts, e.g. 14.8 for a 4S LiPo (default: the servo map's, else 12.0)")
     im.add_argument("--force", action="store_true", help="replace an existing --out directory")
     im.set_defaults(func=run_import)
 
@@ -54,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_show(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
     m = compose(robot, None)
-    print(f"robot {robot.name} ({robot.directory}); library {robot.library}")
+    print(f"robot {robot.name} ({robot.directory}); library {robot.library}; servo supply {robot.supply_voltage_v:g} V")
     print(f"  mass {m.body_mass.sum():.3f} kg, stand height {robot.stand_height_m:.3f} m (torso above soles)")
     for s, lo, hi in zip(robot.servos, robot.joint_lower, robot.joint_upper):
         print(f"  id {s.id:2d} {s.joint:12s} {s.model:11s} [{lo:+.3f}, {hi:+.3f}] rad")
@@ -76,7 +78,8 @@ def run_import(args: argparse.Namespace) -> int:
         if sep and not (joint and model):
             raise ConfigError(f"--servo-model {item!r}: expected MODEL or JOINT=MODEL")
         models[joint if sep else "*"] = model if sep else joint
-    result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name, force=args.force)
+    result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name,
+                           supply_voltage_v=args.supply_voltage, force=args.force)
     for note in result.notes:
         print(f"  {note}")
     print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library --robot {result.directory} build)")

@@ -139,7 +139,7 @@ def expected_getup_s(index: FrameIndex, library: MotionLibrary, robot: Robot, st
     or the root's turn at its angular speed limit if longer; then the motion plays from that frame
     to its end.
     """
-    v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * JOINT_SPEED_FRACTION_OF_NO_LOAD
+    v = np.array([s.no_load_speed_at(robot.supply_voltage_v) for s in robot.servo_datasheets()]) * JOINT_SPEED_FRACTION_OF_NO_LOAD
     a = robot.joint_accel_limits_rad_s2(JOINT_SPEED_FRACTION_OF_NO_LOAD)
     frame_joints = index.joints_w / index.sqrt_w
     dist = np.abs(frame_joints - start.joint_vector(robot.joint_names))

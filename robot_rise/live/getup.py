@@ -123,7 +123,7 @@ class HealthLimits:
         max_temperature_c: [degC] a hotter servo refuses the try: the XM430's windings gain a
             few kelvin in a get-up; 65 keeps the executor's 70 degC abort out of reach.
         min_voltage_v: [V] below it the supply is nearly flat (a 3S LiPo at 3.5 V a cell); the
-            servos lose torque the proof counted on (its weakest variant is 11.1 V).
+            servos lose torque the proof counted on (its weakest variant: the supply -7.5 %, 11.1 V of 12).
         max_voltage_v: [V] above the servos' recommended range.
     """
 

@@ -89,7 +89,7 @@ class TimingLimits:
         """Per joint: ``speed_fraction`` x its servo's no-load speed, and the acceleration its servo
         gives the joint's own inertia at that speed within the envelope
         (``Robot.joint_accel_limits_rad_s2``), or ``joint_accel_rad_s2`` for every joint."""
-        v = np.array([s.no_load_speed_rad_s for s in robot.servo_datasheets()]) * speed_fraction
+        v = np.array([s.no_load_speed_at(robot.supply_voltage_v) for s in robot.servo_datasheets()]) * speed_fraction
         if joint_accel_rad_s2 is None:
             return cls(v, robot.joint_accel_limits_rad_s2(speed_fraction))
         return cls(v, np.full(robot.n_joints, float(joint_accel_rad_s2)))

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from robot_rise.filter import FilterConfig, Proof, prove
-from robot_rise.model import SUPPLY_VOLTAGE_V, Robot
+from robot_rise.model import Robot
 from robot_rise.render import CameraSpec, RenderError, check_camera
 from robot_rise.report.media import replay_media
 from robot_rise.report.page import img_html, page_html, value_html, verdict_html
@@ -118,7 +118,7 @@ def write_report(
     images = media.n_images
     sections: list[tuple[str, str]] = [("Replay", media.html)]
 
-    servos = servo_arrays(robot.servo_datasheets(), SUPPLY_VOLTAGE_V)
+    servos = servo_arrays(robot.servo_datasheets(), robot.supply_voltage_v)
     plots = [
         ("Joint targets vs simulated positions", plot_joints(rec), "joint targets and simulated positions"),
         (

@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 
 from robot_rise.errors import ConfigError
-from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT, load_robot
+from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT, SUPPLY_VOLTAGE_V, load_robot
 from robot_rise.robot_import.roles import InferredRoles, infer_roles, subtree_geoms
 from robot_rise.robot_import.stand import stand_candidates
 from robot_rise.servo import servo_datasheet
@@ -68,7 +68,8 @@ def _load_spec(path: Path) -> tuple[mujoco.MjSpec, str]:
     return spec, "urdf" if suffix == ".urdf" else "mjcf"
 
 
-def _read_servo_map(path: Path) -> list[dict]:
+def _read_servo_map(path: Path) -> tuple[dict, list[dict]]:
+    """The user's ``[bus]`` table (kept as given: baud rate, supply voltage) and servo rows."""
     try:
         data = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as e:
@@ -78,7 +79,10 @@ def _read_servo_map(path: Path) -> list[dict]:
     rows = data.get("servo", [])
     if not rows:
         raise ConfigError(f"{path}: no [[servo]] rows")
-    return rows
+    bus = data.get("bus", {})
+    if not isinstance(bus, dict):
+        raise ConfigError(f"{path}: [bus] must be a table")
+    return bus, rows
 
 
 def _copy_assets(spec: mujoco.MjSpec, source: Path, out: Path) -> list[str]:
@@ -179,6 +183,7 @@ def import_robot(
     servos: str | os.PathLike[str] | None = None,
     servo_models: Mapping[str, str] | None = None,
     name: str | None = None,
+    supply_voltage_v: float | None = None,
     force: bool = False,
 ) -> ImportResult:
     """Write a robot directory from a model file.
@@ -190,6 +195,8 @@ def import_robot(
             offsets, limits. Mutually exclusive with ``servo_models``.
         servo_models: template servo map: ``{"*": model}`` for every joint and/or per-joint models.
         name: robot name (default: the model file's stem).
+        supply_voltage_v: the servos' supply [V], written to the servo map's ``[bus]`` (default:
+            the servo map's, else 12 V).
         force: replace an existing ``out_dir``.
 
     Raises:
@@ -232,7 +239,10 @@ def import_robot(
         raise ConfigError(f"{src}: only hinge joints are supported besides the floating base; not: {', '.join(others)}")
     if not hinges:
         raise ConfigError(f"{src}: no hinge joints")
-    servo_rows = _read_servo_map(Path(servos)) if servos is not None else None
+    bus, servo_rows = _read_servo_map(Path(servos)) if servos is not None else ({}, None)
+    bus = {"protocol": 2.0, "baud_rate": 1000000, "return_delay_time_us": 0, "supply_voltage_v": SUPPLY_VOLTAGE_V} | bus
+    if supply_voltage_v is not None:
+        bus["supply_voltage_v"] = supply_voltage_v
     if servo_rows is not None:
         names = {m.joint(j).name for j in hinges}
         unknown = [str(r.get("joint")) for r in servo_rows if str(r.get("joint")) not in names]
@@ -297,7 +307,7 @@ def import_robot(
     try:
         notes += _copy_assets(spec, src, tmp)
         candidates = _stand_options(m, roles, root_body, sole_ids, legs, stand_key, notes)
-        _write_servos(tmp / "servos.toml", robot_name, servo_rows)
+        _write_servos(tmp / "servos.toml", robot_name, servo_rows, bus)
         stand_note = ""
         for cand_q, label in candidates:
             for k in list(spec.keys):
@@ -386,18 +396,17 @@ def _toml_value(v: object) -> str:
     return str(v)
 
 
-def _write_servos(path: Path, robot: str, rows: list[dict]) -> None:
+def _write_servos(path: Path, robot: str, rows: list[dict], bus: Mapping[str, object]) -> None:
     lines = [
         "# Servo map: which servo drives which joint (IDs, models, directions, zero offsets, limits in radians).",
         "# Written by robot-rise robot import; edit it to your hardware.",
+        "# [bus] supply_voltage_v: the servos' supply (12.0 for a 3S LiPo at 4 V a cell, 14.8 for a 4S at its",
+        "# nominal): every simulation models the servos' torque and speed at it.",
         f'format = "{SERVOS_FORMAT}"',
         f"robot = {_toml_value(robot)}",
         "",
         "[bus]",
-        "protocol = 2.0",
-        "baud_rate = 1000000",
-        "return_delay_time_us = 0",
-    ]
+    ] + [f"{k} = {_toml_value(v)}" for k, v in bus.items()]
     for r in rows:
         lines += ["", "[[servo]]"] + [f"{k} = {_toml_value(r[k])}" for k in ("id", "joint", "model", "direction", "zero_offset", "min", "max") if k in r]
     path.write_text("\n".join(lines) + "\n")

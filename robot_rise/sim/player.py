@@ -34,7 +34,7 @@ import numpy as np
 
 from robot_rise.errors import RobotRiseError
 from robot_rise.sim.balance import support_margin, zmp_point_mass_many
-from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
+from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
 from robot_rise.servo import ServoArrays, servo_arrays
 from robot_rise.sim.variants import ModelVariant, apply_to_model
@@ -137,7 +137,7 @@ class Player:
         robot: Robot,
         scene: str | os.PathLike[str] | None = "flat",
         *,
-        voltage_v: float = SUPPLY_VOLTAGE_V,
+        voltage_v: float | None = None,
         friction_scale: float = 1.0,
         mass_scale: float = 1.0,
         variant: ModelVariant | None = None,
@@ -146,7 +146,7 @@ class Player:
         Args:
             robot: the robot.
             scene: scene name or MJCF path; None for the robot alone.
-            voltage_v: servo supply [V] (a ``variant``'s replaces it).
+            voltage_v: servo supply [V] (None: the robot's own; a ``variant`` scales it).
             friction_scale: every geom's sliding friction times this.
             mass_scale: every body's mass and inertia times this.
             variant: a model variant (``robot_rise.sim.variants``) applied to the composed model;
@@ -155,8 +155,10 @@ class Player:
         self.robot = robot
         self.scene = scene
         self.variant = variant
+        if voltage_v is None:
+            voltage_v = robot.supply_voltage_v
         if variant is not None:
-            voltage_v = variant.voltage_v
+            voltage_v *= variant.supply_scale
         self.model = compose(robot, scene, with_actuators=True, voltage_v=voltage_v, friction_scale=friction_scale, mass_scale=mass_scale)
         self.data = mujoco.MjData(self.model)
         self.index: ModelIndex = model_index(self.model, robot)
@@ -471,7 +473,7 @@ def play(
     hold_s: float = DEFAULT_HOLD_S,
     friction_scale: float = 1.0,
     mass_scale: float = 1.0,
-    voltage_v: float = SUPPLY_VOLTAGE_V,
+    voltage_v: float | None = None,
     record_hz: float = DEFAULT_RECORD_HZ,
 ) -> Recording:
     """One-shot :meth:`Player.play` (composes the model each call)."""

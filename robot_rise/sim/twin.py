@@ -41,7 +41,7 @@ import numpy as np
 
 from robot_rise.constants import STAND_MAX_TILT_RAD, STAND_MIN_HEIGHT_FRACTION
 from robot_rise.errors import ConfigError
-from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot, compose, model_index
+from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture, posture_from_qpos, stand_posture
 
 __all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "TwinImuState", "MujocoTwin"]
@@ -132,7 +132,7 @@ class MujocoTwin:
         robot: the loaded robot.
         scene: scene name or MJCF path (see :func:`robot_rise.model.compose`).
         start: posture at t = 0, at rest (default: the ``stand`` keyframe).
-        voltage_v: servo supply voltage [V].
+        voltage_v: servo supply voltage [V] (None: the robot's own).
         hold_start: until the first servo is torqued on, every joint holds the start posture
             (as if the robot were held there while the driver configures the servos with
             torque off); afterwards the servos' own commands rule.
@@ -141,7 +141,7 @@ class MujocoTwin:
     """
 
     def __init__(self, robot: Robot, scene: str | os.PathLike[str] | None = "flat", *,
-                 start: Posture | None = None, voltage_v: float = SUPPLY_VOLTAGE_V,
+                 start: Posture | None = None, voltage_v: float | None = None,
                  hold_start: bool = True) -> None:
         self.robot = robot
         self.model = compose(robot, scene, with_actuators=True, voltage_v=voltage_v)

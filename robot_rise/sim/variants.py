@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from robot_rise.model import SUPPLY_VOLTAGE_V, ModelIndex, Robot
+from robot_rise.model import ModelIndex, Robot
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -55,7 +55,8 @@ class ModelVariant:
         inertia_spread: every robot body's inertia times U(1 - s, 1 + s) (one factor per body).
         mass_scale: every robot body's mass and inertia times this (total mass).
         friction: every geom's sliding friction set to this (None: the scene's own).
-        voltage_v: servo supply [V] (stall torque and no-load speed scale with it).
+        supply_scale: the servo supply times this, of the robot's own (``Robot.supply_voltage_v``;
+            stall torque and no-load speed scale with it).
         kp_scale: the servos' position gain times this.
         armature_scale: the joints' reflected rotor inertia times this.
         frictionloss_scale: the gear trains' dry friction times this.
@@ -72,7 +73,7 @@ class ModelVariant:
     inertia_spread: float = 0.0
     mass_scale: float = 1.0
     friction: float | None = None
-    voltage_v: float = SUPPLY_VOLTAGE_V
+    supply_scale: float = 1.0
     kp_scale: float = 1.0
     armature_scale: float = 1.0
     frictionloss_scale: float = 1.0
@@ -92,7 +93,7 @@ class ModelVariant:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name == "label" or getattr(self, f.name) != getattr(nominal, f.name)}
 
 
-_MODEL_FIELDS = ("link_mass_spread", "com_spread_m", "inertia_spread", "mass_scale", "friction", "voltage_v", "kp_scale",
+_MODEL_FIELDS = ("link_mass_spread", "com_spread_m", "inertia_spread", "mass_scale", "friction", "supply_scale", "kp_scale",
                  "armature_scale", "frictionloss_scale", "geom_grow_m")
 
 
@@ -108,7 +109,9 @@ class VariantRanges:
     inertia_spread: float = 0.20  # inertias +-20 % (issue 14)
     mass_scale: tuple[float, float] = (0.9, 1.0)  # total mass: OP3 vendor segments 3.15 kg vs 3.5 kg with battery (issue 14)
     friction: tuple[float, float] = (0.5, 1.2)  # floor friction 0.5-1.2 (issue 14: smooth floor to mat)
-    voltage_v: tuple[float, float] = (11.1, 12.0)  # 3S LiPo nominal 11.1 V to the 12 V the model is at (issue 14)
+    # a LiPo at its nominal 3.7 V a cell against the 4.0 V a cell (3S: 11.1 V vs 12 V) robots are
+    # modelled at (issue 14); relative, so a 4S robot modelled at 14.8 V sees 13.7 V
+    supply_scale: tuple[float, float] = (11.1 / 12.0, 1.0)
     kp_spread: float = 0.20  # servo P gain +-20 % (issue 14)
     armature_spread: float = 0.50  # armature +-50 % (issue 14)
     frictionloss_spread: float = 0.50  # gear friction +-50 % (issue 14)
@@ -131,7 +134,7 @@ def _ensemble(r: VariantRanges) -> tuple[ModelVariant, ...]:
         ModelVariant(f"total mass x{1.0 / r.mass_scale[0]:.2f} (heavier)", mass_scale=1.0 / r.mass_scale[0]),
         ModelVariant(f"friction {r.friction[0]:g}", friction=r.friction[0]),
         ModelVariant(f"friction {r.friction[1]:g}", friction=r.friction[1]),
-        ModelVariant(f"supply {r.voltage_v[0]:g} V", voltage_v=r.voltage_v[0]),
+        ModelVariant(f"supply {100 * (r.supply_scale[0] - 1):+.1f} %", supply_scale=r.supply_scale[0]),
         ModelVariant("servo P gain -20 %", kp_scale=1.0 - r.kp_spread),
         ModelVariant("servo P gain +20 %", kp_scale=1.0 + r.kp_spread),
         ModelVariant("armature -50 %, gear friction -50 %", armature_scale=1.0 - r.armature_spread, frictionloss_scale=1.0 - r.frictionloss_spread),
@@ -166,7 +169,7 @@ def random_variants(n: int, seed: int, ranges: VariantRanges = VARIANT_RANGES) -
             inertia_spread=ranges.inertia_spread,
             mass_scale=float(rng.uniform(*ranges.mass_scale)),
             friction=float(rng.uniform(*ranges.friction)),
-            voltage_v=float(rng.uniform(*ranges.voltage_v)),
+            supply_scale=float(rng.uniform(*ranges.supply_scale)),
             kp_scale=float(rng.uniform(1.0 - ranges.kp_spread, 1.0 + ranges.kp_spread)),
             armature_scale=float(rng.uniform(1.0 - ranges.armature_spread, 1.0 + ranges.armature_spread)),
             frictionloss_scale=float(rng.uniform(1.0 - ranges.frictionloss_spread, 1.0 + ranges.frictionloss_spread)),
