@@ -119,15 +119,24 @@ def test_a_build_fills_a_lying_kind_without_a_motion_with_the_turn_over_and_a_pr
 
 
 @pytest.mark.slow
-def test_wolfgang_gets_a_proven_motion_from_its_side_by_tipping_onto_its_front(imported, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    """Wolfgang-OP as its team published it has no side get-up of its own: the tip off its right
-    side, legs apart (its 106 mm feet are as wide as its hips are apart), then its prone get-up,
-    is proven as one motion."""
-    robot = imported["wolfgang"].robot
+def test_wolfgang_gets_a_proven_motion_from_its_side_by_tipping_onto_its_front(shared_robots, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Wolfgang-OP as its team published it, with its servo map (MX-64 arms, MX-106 legs, XH540
+    knees on a 4S LiPo), has no side get-up of its own: the tip off its right side, legs apart
+    (its 106 mm feet are as wide as its hips are apart), then its prone get-up, is proven as one
+    motion, the path and the get-up slowed where the whole needs it."""
+    from robot_rise.authoring.turn_over import TURN_OVER_SLOWING
+    from robot_rise.robot_import import import_robot
+
+    model, _ = shared_robots["wolfgang"]
+    robot = load_robot(import_robot(model, tmp_path / "wolfgang", servos=Path(__file__).parent / "data" / "wolfgang_servos.toml").directory)
+    assert robot.supply_voltage_v == 14.8
     report = build_library(robot, tmp_path / "motions", names=["prone_elbow_knees", "right_tip_onto_front"])
     rows = {r["name"]: r for r in report.written}
     assert "prone_elbow_knees" in rows, report.failed
     tip = rows.get("right_tip_onto_front_then_prone_elbow_knees")
     assert tip is not None and tip["lying"] == "right" and tip["turn_over"] == "right_tip_onto_front", report.failed
-    assert load_library(tmp_path / "motions").get(tip["name"]).trajectory.report["proven"]
+    written = load_library(tmp_path / "motions").get(tip["name"]).trajectory.report
+    assert written["proven"]
+    slowing = (written["turn_over"]["path_time_factor"], written["turn_over"]["get_up_time_factor"])
+    assert slowing in TURN_OVER_SLOWING
     assert set(report.kinds_without_motion()) == {"supine", "left"}

@@ -26,7 +26,7 @@ from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, build_trajectory
 from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, settled_start, write_motion
 from robot_rise.errors import PostureError
-from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, join_with_blend
+from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, command_limits_for, conform, join_with_blend
 from robot_rise.library import Strategy
 from robot_rise.model import Robot
 from robot_rise.placement import place_near
@@ -107,8 +107,13 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         return Landing(None, (), str(e))
     if classify_lying(start.root_quat_wxyz) != turn.lying:
         return Landing(None, (), f"its lying posture settles {classify_lying(start.root_quat_wxyz)}, not {turn.lying}")
-    end = spec.keyframes[-1].t_s
-    tr = build_trajectory(robot, start, (*spec.keyframes, Keyframe(end + LANDING_WAIT_S, {})))
+    # timed as the executor streams it: the proof conforms the whole to the command limits, and a
+    # turn slowed there afterwards lands otherwise (Wolfgang-OP's roll then tip: its knee at 1.01 of
+    # the envelope conformed, 0.86 as played unconformed)
+    limits = command_limits_for(robot)
+    authored = build_trajectory(robot, start, (*spec.keyframes, Keyframe(spec.keyframes[-1].t_s + LANDING_WAIT_S, {})))
+    tr = conform(authored, limits)  # same rows, slower segments: the last keyframe moves with its row
+    end = float(np.interp(spec.keyframes[-1].t_s, authored.t, tr.t))
     times, reason = _landing_times(tr, turn.lands, end, players)
     if reason:
         return Landing(None, times, reason, start, tr)
@@ -120,7 +125,7 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         cut = tr.t <= max(times) + LANDED_MARGIN_S + 1e-9
         clamped = clamp_goal_lead(robot, dataclasses.replace(tr, t=tr.t[cut], q=tr.q[cut]), players,
                                   spread_starts=arrival_spread_starts(robot, start))
-        tr = _held(clamped, LANDING_WAIT_S)
+        tr = _held(conform(clamped, limits), LANDING_WAIT_S)
         nominal, reason = _landing_times(tr, turn.lands, end, players[:1])
         if reason:
             return Landing(None, times, f"as clamped into the envelope, {reason}", start, tr)
