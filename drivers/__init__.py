@@ -22,7 +22,7 @@ from drivers.errors import (
 from drivers.executor import ExecutionReport, Executor, ExecutorConfig
 from drivers.group import Feedback, ServoGroup
 from drivers.port import open_port
-from drivers.safety import SafetyLimits, StopPolicy
+from drivers.safety import SafetyLimits, StopPolicy, voltage_limits_for_supply
 from drivers.servo_map import ServoMap, ServoSpec, load_servo_map
 from drivers.startup import PreflightReport, engage, preflight, recover
 
@@ -51,6 +51,7 @@ __all__ = [
     "ServoGroup",
     "open_port",
     "SafetyLimits",
+    "voltage_limits_for_supply",
     "StopPolicy",
     "ServoMap",
     "ServoSpec",

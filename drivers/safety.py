@@ -32,6 +32,7 @@ __all__ = [
     "MAX_VELOCITY_RAD_S",
     "MAX_TRACKING_ERROR_RAD",
     "SafetyLimits",
+    "voltage_limits_for_supply",
     "EXPECTED_DEBOUNCE_S",
     "ExpectedPositions",
     "evaluate_expected",
@@ -108,6 +109,17 @@ class Fault:
     limit: float
     message: str
 
+
+
+_LIMITS_SUPPLY_V = 12.0  # the supply SafetyLimits' voltage defaults are set for (a 3S LiPo)
+
+
+def voltage_limits_for_supply(supply_v: float) -> dict[str, float]:
+    """``min_voltage_v`` / ``max_voltage_v`` of :class:`SafetyLimits` for a bus whose servos run
+    on ``supply_v`` (the servo map's ``[bus] supply_voltage_v``): the 12 V defaults scaled, so a
+    4S LiPo's 14.8 V aborts below 12.3 V and above 18.3 V instead of refusing a charged battery."""
+    k = supply_v / _LIMITS_SUPPLY_V
+    return {"min_voltage_v": SafetyLimits.min_voltage_v * k, "max_voltage_v": SafetyLimits.max_voltage_v * k}
 
 @dataclass(frozen=True)
 class SafetyLimits:

@@ -56,7 +56,7 @@ class BusSpec:
             )
         if not 0 <= self.return_delay_time_us <= 508:
             raise ServoMapError(f"return_delay_time_us {self.return_delay_time_us} outside 0..508")
-        if not 5.0 <= self.supply_voltage_v <= 30.0:
+        if not 5.0 <= self.supply_voltage_v <= 30.0:  # as robot_rise.model.SUPPLY_RANGE_V (drivers import no core)
             raise ServoMapError(f"supply_voltage_v {self.supply_voltage_v} outside 5..30 V")
 
     @property
@@ -261,11 +261,14 @@ def parse_servo_map(data: Mapping[str, object], *, source: str = "servo map") ->
         raise ServoMapError(f"{source}: [bus] must be a table")
     if float(bus_raw.get("protocol", 2.0)) != 2.0:
         raise ServoMapError(f"{source}: only Dynamixel protocol 2.0 is supported")
-    bus = BusSpec(
-        baud_rate=int(bus_raw.get("baud_rate", 1_000_000)),
-        return_delay_time_us=float(bus_raw.get("return_delay_time_us", 0.0)),
-        supply_voltage_v=float(bus_raw.get("supply_voltage_v", 12.0)),
-    )
+    try:
+        bus = BusSpec(
+            baud_rate=int(bus_raw.get("baud_rate", 1_000_000)),
+            return_delay_time_us=float(bus_raw.get("return_delay_time_us", 0.0)),
+            supply_voltage_v=float(bus_raw.get("supply_voltage_v", 12.0)),
+        )
+    except (TypeError, ValueError) as e:
+        raise ServoMapError(f"{source}: [bus] has a value that is not a number ({e})") from None
     rows = data.get("servo")
     if not isinstance(rows, list):
         raise ServoMapError(f"{source}: no [[servo]] rows")

@@ -76,6 +76,7 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
         q = (initial_rad or {}).get(s.joint, 0.0)
         init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
     return mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
+                      faults=mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v),
                       clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
                       initial_position_ticks=init, return_delay_units=return_delay_units, imu=imu)
 

@@ -11,6 +11,7 @@ import drivers
 from drivers.control_table import SUPPORTED_MODELS, control_table, model_for_number
 from drivers.errors import ControlTableError, ServoMapError
 from drivers.servo_map import ServoMap, ServoSpec, parse_servo_map
+from drivers.session import mock_bus_for
 
 
 def _doc(**servo: object) -> dict:
@@ -87,3 +88,25 @@ def test_that_every_name_in_all_resolves() -> None:
         for name in m.__all__:
             assert hasattr(m, name), f"{mod}.{name}"
     assert drivers.__all__
+
+
+def test_that_the_servo_maps_supply_reaches_the_mock_bus_and_scales_the_executors_voltage_window() -> None:
+    doc = _doc()
+    doc["bus"]["supply_voltage_v"] = 14.8  # a 4S LiPo
+    smap = parse_servo_map(doc)
+    assert smap.bus.supply_voltage_v == 14.8
+    assert mock_bus_for(smap).faults.voltage_of(1) == 14.8
+    window = drivers.voltage_limits_for_supply(14.8)
+    assert window["min_voltage_v"] <= 14.8 * 0.925 and 16.8 <= window["max_voltage_v"]  # the proof's low supply; a charged 4S
+    limits = drivers.SafetyLimits(smap.lower_rad, smap.upper_rad, **window)
+    assert limits.min_voltage_v > 12.0  # what a 3S robot runs on is a flat 4S battery
+    default = drivers.SafetyLimits(smap.lower_rad, smap.upper_rad)
+    assert drivers.voltage_limits_for_supply(12.0) == {"min_voltage_v": default.min_voltage_v, "max_voltage_v": default.max_voltage_v}
+
+
+@pytest.mark.parametrize("value", [48.0, "twelve"])
+def test_that_a_supply_no_servo_runs_on_is_a_servo_map_error(value: object) -> None:
+    doc = _doc()
+    doc["bus"]["supply_voltage_v"] = value
+    with pytest.raises(ServoMapError, match="supply_voltage_v|not a number"):
+        parse_servo_map(doc)

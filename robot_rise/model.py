@@ -41,6 +41,7 @@ __all__ = [
     "GEOM_GROUND",
     "GEOM_OBSTACLE",
     "SIM_TIMESTEP_S",
+    "SUPPLY_RANGE_V",
     "SUPPLY_VOLTAGE_V",
 ]
 
@@ -52,7 +53,7 @@ GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are
 GEOM_ROBOT, GEOM_GROUND, GEOM_OBSTACLE = 0, 1, 2  # ModelIndex.geom_kind values
 SIM_TIMESTEP_S = 0.002  # physics step: 500 Hz (issue 4 asks for >= 500 Hz)
 SUPPLY_VOLTAGE_V = 12.0  # servo supply a robot is modelled at unless its servo map gives one ([bus] supply_voltage_v)
-_SUPPLY_RANGE_V = (5.0, 30.0)  # Dynamixels run on 5-24 V (XL330 5 V to MX/XH 14.8 V 4S LiPo, 24 V Pro): a typo guard
+SUPPLY_RANGE_V = (5.0, 30.0)  # Dynamixels run on 5-24 V (XL330 5 V to MX/XH 14.8 V 4S LiPo, 24 V Pro): a typo guard
 _ATTACH_PREFIX = "robot_rise:"
 
 
@@ -375,12 +376,14 @@ def _load_servos(
     """The servo per joint, in joint order, and the supply voltage [V] of ``[bus]``."""
     data = _read_toml(path, SERVOS_FORMAT)
     bus = data.get("bus", {})
+    if not isinstance(bus, dict):
+        raise ConfigError(f"{path}: [bus] must be a table")
     try:
-        supply_v = float(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V)) if isinstance(bus, dict) else math.nan
+        supply_v = float(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V))
     except (TypeError, ValueError):
         supply_v = math.nan
-    if not _SUPPLY_RANGE_V[0] <= supply_v <= _SUPPLY_RANGE_V[1]:
-        raise ConfigError(f"{path}: [bus] supply_voltage_v must be a number of volts in {_SUPPLY_RANGE_V[0]:g}..{_SUPPLY_RANGE_V[1]:g}, not {bus.get('supply_voltage_v') if isinstance(bus, dict) else bus!r}")
+    if not SUPPLY_RANGE_V[0] <= supply_v <= SUPPLY_RANGE_V[1]:
+        raise ConfigError(f"{path}: [bus] supply_voltage_v must be a number of volts in {SUPPLY_RANGE_V[0]:g}..{SUPPLY_RANGE_V[1]:g}, not {bus.get('supply_voltage_v')!r}")
     rows = data.get("servo", [])
     by_joint: dict[str, ServoAssignment] = {}
     ids: set[int] = set()

@@ -28,11 +28,13 @@ from robot_rise.live import (
     GuardEventKind,
     GuardState,
     Health,
+    HealthLimits,
     PlannedGetUp,
     PostureEstimate,
     PostureEstimator,
     get_up,
     guard_step,
+    health_limits_for_supply,
     health_problems,
     new_tracker,
     root_quat_from_up,
@@ -254,6 +256,11 @@ def test_that_health_problems_name_each_servo_and_limit() -> None:
                         "r_knee: 66 degC, above 65 degC", "l_knee: 15.0 V, outside 10.5..14.5 V")
     with pytest.raises(ValueError, match="attempts"):
         GetUpConfig(attempts=0)
+    # a 4S robot (14.8 V) at full charge is fine; at 12 V its battery is flat
+    four_cell = health_limits_for_supply(14.8)
+    assert health_problems(Health({}, {"l_knee": 16.8}), four_cell) == ()
+    assert health_problems(Health({}, {"l_knee": 12.0}), four_cell) == ("l_knee: 12.0 V, outside 13.0..17.9 V",)
+    assert health_limits_for_supply(12.0) == HealthLimits()
 
 
 # ---- the guard's pushes --------------------------------------------------------------------------

@@ -110,6 +110,13 @@ def test_the_servo_maps_supply_voltage_sets_the_servos_torque_and_a_variant_scal
     weak = Player(four_cell, "flat", variant=low)
     np.testing.assert_allclose(weak.model.actuator_forcerange[acts, 1], sheet.stall_torque_at(14.8 * low.supply_scale))
     assert sheet.stall_torque_at(12.0) < weak.model.actuator_forcerange[acts[0], 1] < sheet.stall_torque_at(14.8)
+    # what plans and times motions uses the same supply: faster, harder servos
+    from robot_rise.planning import TimingLimits
+
+    np.testing.assert_allclose(TimingLimits.from_robot(four_cell).joint_velocity_rad_s / TimingLimits.from_robot(robot).joint_velocity_rad_s,
+                               sheet.no_load_speed_at(14.8) / sheet.no_load_speed_at(12.0))
+    np.testing.assert_allclose(four_cell.joint_accel_limits_rad_s2(0.5) / robot.joint_accel_limits_rad_s2(0.5),
+                               sheet.stall_torque_at(14.8) / sheet.stall_torque_at(12.0), rtol=1e-6)
 
 
 @pytest.mark.parametrize("value", ["48.0", '"twelve"'])

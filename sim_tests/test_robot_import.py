@@ -121,9 +121,12 @@ def test_a_servo_map_gives_ids_models_and_limits(shared_robots, tmp_path: Path) 
     assert robot.joint_lower[knee] == pytest.approx(-0.5) and robot.joint_upper[knee] == pytest.approx(0.5)
     assert robot.supply_voltage_v == 11.1
     assert load_servo_map(result.directory / "servos.toml").bus.baud_rate == 3_000_000
-    # --supply-voltage overrides the map's
+    # --supply-voltage overrides the map's; one no servo runs on is one line, and nothing is written
     again = import_robot(path, tmp_path / "bez1_4s", servos=servos, supply_voltage_v=14.8)
     assert load_robot(again.directory).supply_voltage_v == 14.8
+    with pytest.raises(ConfigError, match=r"--supply-voltage must be a number of volts in 5..30, not 48") as e:
+        import_robot(path, tmp_path / "bez1_48", servos=servos, supply_voltage_v=48.0)
+    assert "\n" not in str(e.value) and not (tmp_path / "bez1_48").exists()
 
 
 _NO_BASE = """<mujoco><worldbody><body name="torso" pos="0 0 1"><geom type="box" size=".1 .1 .1"/>

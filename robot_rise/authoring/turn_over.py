@@ -62,13 +62,15 @@ class Landing:
         landed_s: when the body lies at rest in the strategy's ``lands`` kind on every player
             (and, as clamped, on the nominal one), plus ``LANDED_MARGIN_S`` [s]; None where it
             does not (``reason`` says why).
-        per_player_s: each player's landing time of the turn as authored (not clamped) [s], up to
-            the first player where it did not land.
+        per_player_s: each player's landing time of the turn as streamed (conformed to the command
+            limits, not clamped) [s], up to the first player where it did not land.
         reason: why it does not land (empty when it does).
         start: the settled lying posture the turn starts from (None where it does not settle so).
         turn: the turn's targets from ``start``, its last goals held ``LANDING_WAIT_S`` (a momentum
             turn-over's goals clamped into the envelope: timed on the nominal body only, a corner
             body still turning is the proof's to judge).
+        keyframe_times_s: the strategy's keyframe times on ``turn`` [s] (later than written where
+            conforming or the clamp slowed it).
     """
 
     landed_s: float | None
@@ -76,6 +78,7 @@ class Landing:
     reason: str = ""
     start: Posture | None = None
     turn: Trajectory | None = None
+    keyframe_times_s: tuple[float, ...] = ()
 
 
 def _at_rest_in(rec: Recording, kind: str) -> np.ndarray:
@@ -112,11 +115,11 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
     # the envelope conformed, 0.86 as played unconformed)
     limits = command_limits_for(robot)
     authored = build_trajectory(robot, start, (*spec.keyframes, Keyframe(spec.keyframes[-1].t_s + LANDING_WAIT_S, {})))
-    tr = conform(authored, limits)  # same rows, slower segments: the last keyframe moves with its row
-    end = float(np.interp(spec.keyframes[-1].t_s, authored.t, tr.t))
-    times, reason = _landing_times(tr, turn.lands, end, players)
+    tr = conform(authored, limits)  # same rows, slower segments: each keyframe moves with its row
+    key_t = np.interp([k.t_s for k in spec.keyframes], authored.t, tr.t)
+    times, reason = _landing_times(tr, turn.lands, float(key_t[-1]), players)
     if reason:
-        return Landing(None, times, reason, start, tr)
+        return Landing(None, times, reason, start, tr, tuple(key_t))
     if turn.clamp_lead:
         # the turn up to its landing clamped (clamping the whole hold too weakens a roll on its
         # later impacts until it no longer turns over: Wolfgang-OP), held again, and the nominal
@@ -125,12 +128,14 @@ def landing(robot: Robot, turn: Strategy, players: list[Player]) -> Landing:
         cut = tr.t <= max(times) + LANDED_MARGIN_S + 1e-9
         clamped = clamp_goal_lead(robot, dataclasses.replace(tr, t=tr.t[cut], q=tr.q[cut]), players,
                                   spread_starts=arrival_spread_starts(robot, start))
-        tr = _held(conform(clamped, limits), LANDING_WAIT_S)
-        nominal, reason = _landing_times(tr, turn.lands, end, players[:1])
+        streamed = conform(clamped, limits)  # the clamp's goals may ask for more speed again
+        key_t = np.interp(key_t, clamped.t, streamed.t)
+        tr = _held(streamed, LANDING_WAIT_S)
+        nominal, reason = _landing_times(tr, turn.lands, float(key_t[-1]), players[:1])
         if reason:
-            return Landing(None, times, f"as clamped into the envelope, {reason}", start, tr)
-        return Landing(max(*times, *nominal) + LANDED_MARGIN_S, times, "", start, tr)
-    return Landing(max(times) + LANDED_MARGIN_S, times, "", start, tr)
+            return Landing(None, times, f"as clamped into the envelope, {reason}", start, tr, tuple(key_t))
+        return Landing(max(*times, *nominal) + LANDED_MARGIN_S, times, "", start, tr, tuple(key_t))
+    return Landing(max(times) + LANDED_MARGIN_S, times, "", start, tr, tuple(key_t))
 
 
 def _landing_times(tr: Trajectory, kind: str, end_s: float, players: list[Player]) -> tuple[tuple[float, ...], str]:
@@ -194,7 +199,7 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
                               report_clearance=False)
     if not planned.solved or planned.trajectory is None:
         return None, f"no path from where it lands to {get_up}'s start: {planned.result.reason or planned.result.status.value}"
-    kfs = (*spec.keyframes, Keyframe(landed.landed_s, {}))
+    kfs = (*(dataclasses.replace(k, t_s=float(t)) for k, t in zip(spec.keyframes, landed.keyframe_times_s)), Keyframe(landed.landed_s, {}))
     name = f"{turn.name}_then_{get_up}"
     tried = []
     for path_factor, get_up_factor in TURN_OVER_SLOWING:
@@ -206,14 +211,14 @@ def author_turn_over(out_dir: Path, robot: Robot, turn: Strategy, landed: Landin
                  "turn_over": {"strategy": turn.name, "landed_s": landed.landed_s, "then": get_up,
                                "path_time_factor": path_factor, "get_up_time_factor": get_up_factor}}
         # lying, a limb rests on another (Wolfgang-OP's upper foot on its lower leg): touching is the proof's standard here, not any contact
-        got = prove_for_library(robot, tr, start, players, clamp_lead=False, connect_until_s=spec.keyframes[spec.connect_keyframe].t_s,
+        got = prove_for_library(robot, tr, start, players, clamp_lead=False, connect_until_s=kfs[spec.connect_keyframe].t_s,
                                 report=extra, touching_ok=True)
         if not isinstance(got, str):
             break
-        tried.append(f"path x{path_factor:g}, get-up x{get_up_factor:g}: {got}")
+        tried.append((f"path x{path_factor:g}, get-up x{get_up_factor:g}" if (path_factor, get_up_factor) != (1.0, 1.0) else "as planned") + f": {got}")
         log.info("%s: %s", name, tried[-1])
     else:
-        return None, tried[0] + "".join(f"; slowed {t}" for t in tried[1:])
+        return None, " | ".join(tried)
     tr, v, connect_until_s = got
     out_dir.mkdir(parents=True, exist_ok=True)
     write_motion(out_dir, name, tr, start)

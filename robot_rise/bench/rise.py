@@ -71,7 +71,8 @@ BENCH_MODEL_VARIANTS: tuple[ModelVariant, ...] = (
 """Replays of each proven trajectory under model errors (issue 6), each combining two of the
 ensemble's errors (``robot_rise.sim.variants``) that ``rise`` proves one at a time. Friction is
 absolute (the scene's ground has 0.9). Servo torque -15 % is a 15 % lower
-supply voltage (stall torque and no-load speed both scale with it). Latency: targets arrive one
+supply voltage than the robot's (stall torque and no-load speed scale with it: exactly 15 % off
+for a 12 V robot, 10.2 V lying below the datasheets' rows; between rows, as they interpolate). Latency: targets arrive one
 100 Hz control period late. Judged as ``filter.stands_under`` judges (the proof's criteria)."""
 
 

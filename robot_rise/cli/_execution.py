@@ -79,7 +79,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
     from drivers.clock import FakeClock
     from drivers.errors import CommunicationError
     from drivers.executor import Executor, ExecutorConfig
-    from drivers.safety import SafetyLimits, StopPolicy, check_limits
+    from drivers.safety import SafetyLimits, StopPolicy, check_limits, voltage_limits_for_supply
     from drivers.servo_map import load_servo_map
     from drivers.session import connect, mock_url_for
     from drivers.startup import disarm_watchdog, engage, preflight
@@ -99,7 +99,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
         scene = traj.report.get("scene")
         print(f"proven on robot {robot.name}" + (f" in scene {scene}" if scene else ""))
     smap = load_servo_map(robot.directory / "servos.toml")
-    limits = SafetyLimits(smap.lower_rad, smap.upper_rad)
+    limits = SafetyLimits(smap.lower_rad, smap.upper_rad, **voltage_limits_for_supply(smap.bus.supply_voltage_v))
     expected = _proven_limits_and_expected(traj, smap, limits, config, proven=permit.allowed)
     lim = check_limits(np.asarray(traj.q)[:, smap.index_of(traj.joint_names)], limits)
     if not lim.ok:

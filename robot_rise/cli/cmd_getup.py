@@ -105,7 +105,7 @@ class BusRobotIO:
 
     def __init__(self, robot: Robot, servo_map: ServoMap, connection: Connection, imu: OpenCrImu, *,
                  simulated: bool = False, twin: MujocoTwin | None = None, allow_unproven: bool = False) -> None:
-        from drivers.safety import SafetyLimits
+        from drivers.safety import SafetyLimits, voltage_limits_for_supply
 
         self.robot = robot
         self.map = servo_map
@@ -115,9 +115,10 @@ class BusRobotIO:
         self.imu = imu
         self.simulated = simulated
         self.twin = twin
-        self.limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad)
+        volts = voltage_limits_for_supply(servo_map.bus.supply_voltage_v)
+        self.limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad, **volts)
         self.allow_unproven = allow_unproven
-        self.unproven_limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad, max_tracking_error_rad=math.pi)
+        self.unproven_limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad, max_tracking_error_rad=math.pi, **volts)
         self.executions: list[Any] = []  # the executor's reports, in order
 
     # clock
@@ -391,13 +392,14 @@ def print_getup_report(report: Any, *, t_origin: float = 0.0) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_rise.live.getup import GetUpConfig, get_up
+    from robot_rise.live.getup import GetUpConfig, get_up, health_limits_for_supply
 
     if args.attempts < 1:
         raise RobotRiseError(f"--attempts {args.attempts}: at least 1")
     start = _start_posture(args, args.robot)
     config = scheme_config(args.scheme, GetUpConfig(attempts=args.attempts))
     with open_live_session(args, start=start, stock=args.scheme == "stock") as s:
+        config = dataclasses.replace(config, health=health_limits_for_supply(s.io.map.bus.supply_voltage_v))
         if not args.json:
             print(f"robot {s.robot.name} on {s.io.connection.url}: {len(s.io.map)} servos and the IMU answer; "
                   f"ready in {s.setup_s:.1f} s" + ("; physics twin on a simulated clock" if s.twin else ""))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from typing import TYPE_CHECKING
@@ -84,7 +85,7 @@ def _push_line(o: PushOutcome) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_rise.live.getup import GetUpConfig, PushConfig, guard, push_trials, summarize_pushes
+    from robot_rise.live.getup import GetUpConfig, PushConfig, guard, health_limits_for_supply, push_trials, summarize_pushes
 
     if args.attempts < 1:
         raise RobotRiseError(f"--attempts {args.attempts}: at least 1")
@@ -103,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda s: None) if args.json else (lambda s: print(s, flush=True))
     with open_live_session(args, stock=stock, composed=not (stock or args.whole_proofs), say=say) as s:
         io = s.io
+        config = dataclasses.replace(config, health=health_limits_for_supply(io.map.bus.supply_voltage_v))
         if not args.json:
             print(f"robot {s.robot.name} on {io.connection.url}: {len(io.map)} servos and the IMU answer; "
                   f"ready in {s.setup_s:.1f} s" + ("; physics twin on a simulated clock" if s.twin else ""), flush=True)

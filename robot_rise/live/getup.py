@@ -59,6 +59,7 @@ from robot_rise.trajectory import Trajectory
 __all__ = [
     "Health",
     "HealthLimits",
+    "health_limits_for_supply",
     "health_problems",
     "ExecutionResult",
     "RobotIO",
@@ -130,6 +131,13 @@ class HealthLimits:
     max_temperature_c: float = 65.0
     min_voltage_v: float = 10.5
     max_voltage_v: float = 14.5
+
+
+def health_limits_for_supply(supply_v: float) -> HealthLimits:
+    """:class:`HealthLimits` for servos on ``supply_v`` (the servo map's ``[bus]
+    supply_voltage_v``): the 12 V figures scaled (a 4S LiPo's 14.8 V: 12.95-17.9 V)."""
+    k = supply_v / 12.0
+    return replace(HealthLimits(), min_voltage_v=HealthLimits.min_voltage_v * k, max_voltage_v=HealthLimits.max_voltage_v * k)
 
 
 def health_problems(health: Health, limits: HealthLimits = HealthLimits()) -> tuple[str, ...]:
