@@ -110,17 +110,6 @@ class Fault:
     message: str
 
 
-
-_LIMITS_SUPPLY_V = 12.0  # the supply SafetyLimits' voltage defaults are set for (a 3S LiPo)
-
-
-def voltage_limits_for_supply(supply_v: float) -> dict[str, float]:
-    """``min_voltage_v`` / ``max_voltage_v`` of :class:`SafetyLimits` for a bus whose servos run
-    on ``supply_v`` (the servo map's ``[bus] supply_voltage_v``): the 12 V defaults scaled, so a
-    4S LiPo's 14.8 V aborts below 12.3 V and above 18.3 V instead of refusing a charged battery."""
-    k = supply_v / _LIMITS_SUPPLY_V
-    return {"min_voltage_v": SafetyLimits.min_voltage_v * k, "max_voltage_v": SafetyLimits.max_voltage_v * k}
-
 @dataclass(frozen=True)
 class SafetyLimits:
     """Thresholds of the safety layer.
@@ -170,6 +159,17 @@ class SafetyLimits:
     def max_step_rad(self, dt_s: float) -> float:
         """Largest command change in one cycle of ``dt_s`` [s]."""
         return self.max_velocity_rad_s * dt_s
+
+
+_LIMITS_SUPPLY_V = 12.0  # the supply SafetyLimits' voltage defaults are set for (a 3S LiPo)
+
+
+def voltage_limits_for_supply(supply_v: float) -> dict[str, float]:
+    """``min_voltage_v`` / ``max_voltage_v`` of :class:`SafetyLimits` for a bus whose servos run
+    on ``supply_v`` (the servo map's ``[bus] supply_voltage_v``): the 12 V defaults scaled, so a
+    4S LiPo's 14.8 V aborts below 12.3 V and above 18.3 V instead of refusing a charged battery."""
+    k = supply_v / _LIMITS_SUPPLY_V
+    return {"min_voltage_v": SafetyLimits.min_voltage_v * k, "max_voltage_v": SafetyLimits.max_voltage_v * k}
 
 
 @dataclass(frozen=True)
