@@ -43,6 +43,7 @@ __all__ = [
     "SIM_TIMESTEP_S",
     "SUPPLY_RANGE_V",
     "SUPPLY_VOLTAGE_V",
+    "supply_voltage",
 ]
 
 log = logging.getLogger(__name__)
@@ -370,6 +371,17 @@ def _load_roles(path: Path, table: object, joint_names: tuple[str, ...]) -> Role
         raise ConfigError(f"{path}: [roles]: {e}") from e
 
 
+def supply_voltage(value: object, where: str) -> float:
+    """``value`` as a servo supply [V]; ConfigError naming ``where`` unless a number in ``SUPPLY_RANGE_V``."""
+    try:
+        volts = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        volts = math.nan
+    if not SUPPLY_RANGE_V[0] <= volts <= SUPPLY_RANGE_V[1]:
+        raise ConfigError(f"{where} must be a number of volts in {SUPPLY_RANGE_V[0]:g}..{SUPPLY_RANGE_V[1]:g}, not {value!r}")
+    return volts
+
+
 def _load_servos(
     path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str, extra_catalog: Path
 ) -> tuple[tuple[ServoAssignment, ...], float]:
@@ -378,12 +390,7 @@ def _load_servos(
     bus = data.get("bus", {})
     if not isinstance(bus, dict):
         raise ConfigError(f"{path}: [bus] must be a table")
-    try:
-        supply_v = float(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V))
-    except (TypeError, ValueError):
-        supply_v = math.nan
-    if not SUPPLY_RANGE_V[0] <= supply_v <= SUPPLY_RANGE_V[1]:
-        raise ConfigError(f"{path}: [bus] supply_voltage_v must be a number of volts in {SUPPLY_RANGE_V[0]:g}..{SUPPLY_RANGE_V[1]:g}, not {bus.get('supply_voltage_v')!r}")
+    supply_v = supply_voltage(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V), f"{path}: [bus] supply_voltage_v")
     rows = data.get("servo", [])
     by_joint: dict[str, ServoAssignment] = {}
     ids: set[int] = set()

@@ -13,7 +13,6 @@ renamed into place, so a failed import leaves nothing behind.
 
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import tempfile
@@ -26,7 +25,7 @@ import mujoco
 import numpy as np
 
 from robot_rise.errors import ConfigError
-from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT, SUPPLY_RANGE_V, SUPPLY_VOLTAGE_V, load_robot
+from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT, SUPPLY_VOLTAGE_V, load_robot, supply_voltage
 from robot_rise.robot_import.roles import InferredRoles, infer_roles, subtree_geoms
 from robot_rise.robot_import.stand import stand_candidates
 from robot_rise.servo import servo_datasheet
@@ -247,13 +246,8 @@ def import_robot(
     odd = [k for k, v in bus.items() if not isinstance(v, (int, float, str)) or not str(k).replace("_", "").isalnum()]
     if odd:
         raise ConfigError(f"{servos}: [bus] keys must be plain settings (number or text); not: {', '.join(map(str, odd))}")
-    try:
-        supply = float(bus["supply_voltage_v"])
-    except (TypeError, ValueError):
-        supply = math.nan
-    if not SUPPLY_RANGE_V[0] <= supply <= SUPPLY_RANGE_V[1]:
-        source = "--supply-voltage" if supply_voltage_v is not None else f"{servos}: [bus] supply_voltage_v"
-        raise ConfigError(f"{source} must be a number of volts in {SUPPLY_RANGE_V[0]:g}..{SUPPLY_RANGE_V[1]:g}, not {bus['supply_voltage_v']!r}")
+    # checked before writing: the standing search swallows load_robot's errors
+    supply_voltage(bus["supply_voltage_v"], "--supply-voltage" if supply_voltage_v is not None else f"{servos}: [bus] supply_voltage_v")
     if servo_rows is not None:
         names = {m.joint(j).name for j in hinges}
         unknown = [str(r.get("joint")) for r in servo_rows if str(r.get("joint")) not in names]
