@@ -8,7 +8,7 @@ Above the core: only the CLI and tests import this package. Rebuild the library 
 - :mod:`~robot_rise.authoring.lying` -- the start posture: a lying posture dropped onto flat
   ground to rest (``settle``, ``quat_lying``).
 - :mod:`~robot_rise.authoring.retiming` -- the timing found in MuJoCo against the torque-speed
-  envelope (``speed_prescale``, ``subdivide``, ``retime``).
+  envelope (``speed_prescale``, ``subdivide``, ``retime``: the fastest timing and the one before its refinement).
 - :mod:`~robot_rise.authoring.goal_lead` -- ``clamp_goal_lead`` for motions that keep their
   timing because they need their momentum (also from the rest states a composed get-up arrives
   in: ``robot_rise.filter.arrival_spread_starts``).
@@ -26,7 +26,7 @@ from __future__ import annotations
 from robot_rise.authoring.goal_lead import LEAD_CLAMP_TARGET, clamp_goal_lead
 from robot_rise.authoring.keyframes import ROW_HZ, Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import quat_lying, settle
-from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
+from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, Retimed, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import ROBUST_FRICTION, ROBUST_MASS, TORQUE_BOUND, robustness_players
 from robot_rise.authoring.write import PROOF_SCENE, Reproof, author_library, motion_specs, reprove_library, with_proof
 
@@ -48,6 +48,7 @@ __all__ = [
     "build_trajectory",
     "clamp_goal_lead",
     "quat_lying",
+    "Retimed",
     "retime",
     "robustness_players",
     "settle",

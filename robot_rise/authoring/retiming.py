@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -32,6 +33,7 @@ __all__ = [
     "RETIME_RATIO_TARGET",
     "SPEED_CAP_FRACTION",
     "SUBDIVIDE_S",
+    "Retimed",
     "retime",
     "speed_prescale",
     "subdivide",
@@ -98,10 +100,12 @@ def subdivide(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...], *, 
     return tuple(out), where
 
 
-def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: Sequence[Player]) -> tuple[np.ndarray, bool, str]:
+def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: Sequence[Player], *,
+              stop_above: float | None = None) -> tuple[np.ndarray, bool, str]:
     """Play ``kfs`` on every player: per-segment peak torque/envelope ratio (max over players,
     including the 0.2 s after each segment, where a late tracking error shows) and whether every
-    play stands without self collision (and why not)."""
+    play stands without self collision (and why not). ``stop_above``: stop at the first player
+    that fails or peaks above it (a pass/fail question: the peaks returned then are partial)."""
     tr = build_trajectory(robot, start, kfs)
     times = np.array([0.0] + [k.t_s for k in kfs])
     seg_peak = np.zeros(len(kfs))
@@ -117,7 +121,18 @@ def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: 
         if not v.standing or v.self_collision:
             ok = False
             why = why or (v.reason if not v.standing else "self collision")
+        if stop_above is not None and (not ok or (seg_peak > stop_above).any()):
+            break
     return seg_peak, ok, why
+
+
+@dataclass(frozen=True)
+class Retimed:
+    """What :func:`retime` found: the fastest timing (after the coordinate descent) and the
+    timing before it (one a proof may still accept when the fastest sits on a knife edge)."""
+
+    fastest: tuple[Keyframe, ...]
+    unrefined: tuple[Keyframe, ...]
 
 
 def retime(
@@ -132,7 +147,7 @@ def retime(
     min_segment_s: float = 0.1,
     max_iter: int = 60,
     refine_steps: Sequence[float] = REFINE_STEPS,
-) -> tuple[Keyframe, ...]:
+) -> Retimed:
     """Retime the keyframe segments to the servos' torque-speed envelope, both ways.
 
     A simple optimisation in MuJoCo over the segment durations:
@@ -148,8 +163,9 @@ def retime(
     4. :func:`_refine`: coordinate descent from there, one segment at a time, with the factors
        ``refine_steps`` (empty: skip it).
 
-    Returns the fastest feasible timing found (the input's if none was feasible: then the caller's
-    verification fails and reports it).
+    Returns the fastest feasible timing found and the one before step 4 (both the input's if none
+    was feasible: then the caller's verification fails and reports it). A caller that needs both
+    (the library author tries the unrefined timing when the fastest is not proven) retimes once.
 
     Args:
         players: :class:`robot_rise.sim.Player` objects on flat ground (nominal and the
@@ -207,11 +223,12 @@ def retime(
             dur *= 1.1
     if best is None:
         log.warning("retime: no feasible timing within %d iterations (last: %.2f s)", max_iter, dur.sum())
-        return to_kfs(dur)
+        return Retimed(to_kfs(dur), to_kfs(dur))
     log.info("retime: %.2f s after %d iterations", best.sum(), it + 1)
+    unrefined = to_kfs(best)
     if refine_steps:
         best = _refine(robot, start, goals, best, plist, ratio_target=ratio_target, steps=refine_steps, min_segment_s=min_segment_s)
-    return to_kfs(best)
+    return Retimed(to_kfs(best), unrefined)
 
 
 def _refine(
@@ -246,7 +263,8 @@ def _refine(
                 trial = dur.copy()
                 trial[i] *= step
                 kfs = tuple(Keyframe(float(t), g) for t, g in zip(np.round(np.cumsum(trial), 3), goals))
-                seg_peak, ok, _ = _evaluate(robot, start, kfs, players)
+                # pass or fail is all that is asked: the first failing player answers it
+                seg_peak, ok, _ = _evaluate(robot, start, kfs, players, stop_above=ratio_target)
                 n_evals += 1
                 if ok and (seg_peak <= ratio_target).all():
                     dur = trial

@@ -33,7 +33,7 @@ from robot_rise.authoring.adapt import adapt_to_body, fit_to_body, reference_sta
 from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, MotionSpec, build_trajectory
 from robot_rise.authoring.lying import settle
-from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, retime, speed_prescale, subdivide
+from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, Retimed, retime, speed_prescale, subdivide
 from robot_rise.authoring.robustness import TORQUE_BOUND, robustness_players
 from robot_rise.errors import FormatError, PostureError
 from robot_rise.fileio import write_text_atomic
@@ -389,10 +389,15 @@ def author_library(
         attempts = ("fastest", "unrefined", "unretimed") if spec.retime else ("as written",)
         reasons: list[str] = []
         done = None
+        retimed: Retimed | None = None  # both retimed attempts from one retiming (it is deterministic)
         for attempt in attempts:
             if attempt in ("fastest", "unrefined"):
                 fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
-                kfs = retime(robot, start, fine, players, ratio_target=RETIME_RATIO_TARGET, **({} if attempt == "fastest" else {"refine_steps": ()}))
+                if retimed is None:
+                    retimed = retime(robot, start, fine, players, ratio_target=RETIME_RATIO_TARGET)
+                elif retimed.unrefined == retimed.fastest:  # the refinement changed nothing: the same proof would fail the same way
+                    continue
+                kfs = retimed.fastest if attempt == "fastest" else retimed.unrefined
                 connect_until_s = kfs[where[spec.connect_keyframe]].t_s
             elif attempt == "unretimed":
                 kfs = speed_prescale(robot, start, spec.keyframes)
