@@ -49,7 +49,7 @@ from robot_rise.filter import (
     with_ensemble,
     with_noise,
 )
-from robot_rise.sim.player import Player
+from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.variants import ModelVariant
 from robot_rise.library import (Connection, FrameIndex, KMeansTree, Motion, MotionLibrary, connecting_posture, connection_candidates, load_library,
                                 lying_frames, robot_library_dir)
@@ -86,6 +86,16 @@ OBSTACLES_ONLY_GROUND_DROP_M = 2.0  # the ground moved this far down: a checker 
 MAX_STRETCH = 2.5  # FilterConfig.max_stretch of a rise (unless the caller sets one): a library motion slowed more is the next candidate's turn
 KEY_IN_LIBRARY_DISTANCE = 1e-6  # a key posture this close (planner distance) to its connecting posture is that library posture
 NOT_COMPOSABLE = "not joined by a composed proof: its start proof does not stand on every variant, or its nominal torque is not proven from every arrival-spread start"
+# a candidate that stood and was only over the torque bound, still coming down when the filter's
+# iterations ran out (by at least this much in its last one), is filtered again with this many more
+# once no candidate is proven (Wolfgang-OP, a side start: an elbow under the 6.1 kg body came
+# down 1.00 -> 0.99 -> 0.96 in iterations 4-6 as its approach was slowed; the bound is 0.88)
+# a failed attempt over the torque bound is stopped this long before it goes over (its goals then
+# ramp in STOP_RAMP_S to where the joints are) when the robot rises again from where it lies [s]
+STOP_BEFORE_S = 0.1
+STOP_RAMP_S = 0.1
+MORE_ITERATIONS = 6
+MORE_ITERATIONS_MIN_DROP = 0.005
 SAME_TARGETS_RAD = 1e-4  # [rad] a composed approach ending this close to the motion's first targets ends on them (rounding, far below one servo tick of 1.5 mrad): no 0.3 s step there
 
 
@@ -104,6 +114,7 @@ class RiseAttempt:
     robust: bool = False
     blocked: str = ""  # why the motion has no room where it would go (placement.motion_room); nothing was planned
     skipped: str = ""  # why this pass does not try the motion (rise(composed=True): not composable); nothing was planned
+    more_iterations: int = 0  # the candidate filtered again with this many more iterations (MORE_ITERATIONS)
 
     def describe(self) -> str:
         if self.skipped:
@@ -112,9 +123,10 @@ class RiseAttempt:
             return f"{self.motion}@{self.frame}: {self.blocked}"
         if not self.planned:
             return f"{self.motion}@{self.frame}: no path ({self.plan_reason})"
+        again = f" with {self.more_iterations} more filter iterations" if self.more_iterations else ""
         if not self.proven:
-            return f"{self.motion}@{self.frame}: not proven ({self.filter_reason})"
-        return f"{self.motion}@{self.frame}: proven" + ("" if self.robust else ", not robust to model errors")
+            return f"{self.motion}@{self.frame}{again}: not proven ({self.filter_reason})"
+        return f"{self.motion}@{self.frame}{again}: proven" + ("" if self.robust else ", not robust to model errors")
 
 
 @dataclass(frozen=True)
@@ -373,6 +385,7 @@ def _rise_candidates(
     attempts: list[RiseAttempt] = []
     best_unproven: FilterResult | None = None
     best_proven: RiseResult | None = None
+    short_of_torque: list[tuple[float, Connection, Trajectory, FilterConfig, int]] = []  # (peak, candidate, commanded, config, join row)
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
         if composed and conn.frame != 0:  # a composed proof starts where the motion's own proof started
             conn = dataclasses.replace(conn, frame=0, time_s=0.0)
@@ -462,6 +475,24 @@ def _rise_candidates(
             continue
         if best_unproven is None:
             best_unproven = result
+        if _short_of_torque(result):
+            short_of_torque.append((result.proof.peak_torque_ratio, conn, commanded, motion_config, len(planned.trajectory.t)))
+    if best_proven is None and short_of_torque:
+        # every candidate failed; the one nearest the torque bound, still coming down, gets more iterations
+        peak, conn, commanded, motion_config, join_row = min(short_of_torque, key=lambda c: c[0])
+        say(f"filtering {conn.motion} with {MORE_ITERATIONS} more iterations (peak torque {peak:.2f} and coming down)")
+        t0 = time.monotonic()
+        longer = dataclasses.replace(motion_config, max_iterations=motion_config.max_iterations + MORE_ITERATIONS)
+        result = dynamics_filter(robot, commanded, scene=scene, config=longer, start=start,
+                                 ensemble=context.ensemble() if filter_config.ensemble else None, join_row=join_row)
+        t1 = time.monotonic()
+        robust = {v.label: stands_under(robot, result.trajectory, v, scene=scene, config=filter_config, start=start) for v in robustness} if result.proven else {}
+        attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
+                                    seconds={"filter": t1 - t0, "robustness": time.monotonic() - t1}, robust=all(robust.values()),
+                                    more_iterations=MORE_ITERATIONS))
+        if result.proven:
+            tr = result.trajectory.with_report(attempts=[a.describe() for a in attempts], seconds=attempts[-1].seconds, robustness=robust)
+            best_proven = RiseResult(True, tr, tuple(attempts), "", result)
     if best_proven is not None:
         return RiseResult(True, best_proven.trajectory.with_report(attempts=[a.describe() for a in attempts]), tuple(attempts), "", best_proven.filter_result)
     reason = "; ".join(a.describe() for a in attempts) or "no library motion to connect to"
@@ -474,6 +505,16 @@ def _rise_candidates(
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _short_of_torque(result: FilterResult) -> bool:
+    """The filter gave up on a motion that stood on the nominal model, without self collision, only
+    over the torque bound, and whose peak was still coming down in its last iteration (one the
+    slowing had not finished with, not one stuck where a load no slowing relieves holds it)."""
+    proof, history = result.proof, result.iterations
+    coming_down = len(history) < 2 or history[-1].peak_envelope_ratio < history[-2].peak_envelope_ratio - MORE_ITERATIONS_MIN_DROP
+    return (not result.proven and proof.standing and not proof.self_collision and proof.peak_torque_ratio > proof.envelope_limit
+            and len(proof.problems) == 1 and coming_down)
 
 
 def _joining(config: FilterConfig, motion: Motion) -> FilterConfig:
@@ -573,7 +614,10 @@ def _rise_again_from_where_it_fell(
     becomes a new lying posture; the combined targets (failed attempt, its hold, the new rise)
     are proven by replaying them from the original start.
     """
-    rec = failed.recording
+    first, rec = failed.trajectory, failed.recording
+    stopped = _stopped_before_the_torque_bound(robot, failed, scene=scene, filter_config=filter_config)
+    if stopped is not None:  # the attempt as far as it keeps within the torque bound: a combined proof can hold
+        first, rec = stopped
     if classify_lying(rec.root_pose[-1, 3:]) == "upright":
         return None
     if np.max(np.abs(rec.qd[-1])) > RECOVERY_MAX_JOINT_SPEED or np.linalg.norm(rec.root_vel[-1]) > RECOVERY_MAX_ROOT_SPEED:
@@ -582,7 +626,8 @@ def _rise_again_from_where_it_fell(
     fallen = Posture(robot.name, rec.root_pose[-1, :3], rec.root_pose[-1, 3:], dict(zip(robot.joint_names, joints)))
     if not context.checker.is_valid(fallen):
         return None
-    log.info("first attempt ended lying (%s); rising again from there", classify_lying(fallen.root_quat_wxyz))
+    log.info("first attempt %s lying (%s); rising again from there", f"stopped at {first.duration_s:.2f} s, before the torque bound," if stopped else "ended",
+             classify_lying(fallen.root_quat_wxyz))
     tried: list[RiseAttempt] = []
     # the quickest get-up from where it fell first; where that is proven alone but not whole (from
     # the original start, after the fall), the nearest motions', the safest joins (where nothing
@@ -595,24 +640,51 @@ def _rise_again_from_where_it_fell(
         tried.extend(again.attempts)
         if not again.proven or again.trajectory is None:
             return None
-        combined = _after_the_fall(robot, failed, again, scene=scene, filter_config=filter_config, context=context)
+        combined = _after_the_fall(robot, first, failed.reason, again, scene=scene, filter_config=filter_config, context=context)
         if combined is not None:
             return RiseResult(True, combined, tuple(tried), "", again.filter_result)
     return None
 
 
+def _stopped_before_the_torque_bound(
+    robot: Robot, failed: FilterResult, *, scene: str | os.PathLike[str] | None, filter_config: FilterConfig
+) -> tuple[Trajectory, Recording] | None:
+    """A failed attempt that goes over the torque bound, stopped ``STOP_BEFORE_S`` before it does,
+    as the executor stops: the servos' goals set to where the joints are; and its replay with the
+    judge's hold (None: it never goes over the bound, or already in its first ``STOP_BEFORE_S``).
+
+    The whole failed attempt cannot be the first part of a proven recovery when it goes over the
+    bound (the combined replay goes over it the same way): Wolfgang-OP, a side start whose arm the
+    approach pressed under the body stalled the servo at the envelope, then lay prone and was
+    proven from there, but not after that."""
+    rec, first = failed.recording, failed.trajectory
+    limit = 1.0 - filter_config.envelope_margin - filter_config.proof_headroom
+    over = np.flatnonzero(rec.envelope_ratio.max(axis=1) > limit)
+    if over.size == 0:
+        return None
+    t_stop = float(rec.t[over[0]]) - STOP_BEFORE_S
+    keep = first.t < t_stop
+    if t_stop <= 0.0 or not keep.any():
+        return None
+    where = np.array([np.interp(t_stop, rec.t, rec.q[:, j]) for j in range(rec.q.shape[1])])
+    where = np.clip(where, robot.joint_lower, robot.joint_upper)
+    stopped = conform(Trajectory(first.robot, first.joint_names, np.append(first.t[keep], t_stop + STOP_RAMP_S), np.vstack([first.q[keep], where]),
+                                 first.start, first.report, None), command_limits_for(robot))
+    return stopped, Player(robot, scene).play(stopped, hold_s=filter_config.hold_s)
+
+
 def _after_the_fall(
     robot: Robot,
-    failed: FilterResult,
+    first: Trajectory,
+    first_reason: str,
     again: RiseResult,
     *,
     scene: str | os.PathLike[str] | None,
     filter_config: FilterConfig,
     context: RiseContext,
 ) -> Trajectory | None:
-    """The failed attempt, its hold and the new rise as one trajectory, proven from the original
-    start (None where it is not)."""
-    first = failed.trajectory
+    """The failed attempt ``first`` (as far as it was played), its hold and the new rise as one
+    trajectory, proven from the original start (None where it is not)."""
     held_until = first.duration_s + filter_config.hold_s
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
     limits = command_limits_for(robot)
@@ -636,7 +708,7 @@ def _after_the_fall(
     return combined.with_report(
         **{k: v for k, v in again.trajectory.report.items() if k not in entries and k != NOISE_CHECK_KEY},
         **entries,
-        recovery={"first_attempt_until_s": held_until, "first_attempt": failed.reason, "then": again.trajectory.report.get("motion")},
+        recovery={"first_attempt_until_s": held_until, "first_attempt": first_reason, "then": again.trajectory.report.get("motion")},
     )
 
 

@@ -226,3 +226,20 @@ def test_a_start_every_candidate_fails_from_rises_again_from_where_it_fell(robot
     assert len(proven_alone) == 2 and tr.report["recovery"]["then"] == proven_alone[-1] != proven_alone[0]
     _, verdict, again = prove(robot, tr)
     assert again.proven and verdict.standing
+
+
+def test_a_candidate_the_filter_gave_up_on_while_its_torque_came_down_gets_more_iterations(robot):
+    """With one filter iteration the OP3's first prone start of seed 3 is over the torque bound
+    (slowing was bringing it down); no candidate is proven, so that one is filtered again with
+    MORE_ITERATIONS more, and is proven there, on every variant, and by ``check``'s replay."""
+    from robot_rise.rise import MORE_ITERATIONS
+
+    posture = sample_lying(robot, "prone", 1, 3).postures[0]
+    result = rise(robot, posture, seed=0, budget_s=10, candidates=1, retries=0, filter_config=FilterConfig(max_iterations=1))
+    assert result.proven, result.reason
+    first, more = result.attempts
+    assert not first.proven and first.filter_reason.startswith("torque") and (first.motion, first.frame) == (more.motion, more.frame)
+    assert more.proven and more.more_iterations == MORE_ITERATIONS
+    assert "with 6 more filter iterations: proven" in result.trajectory.report["attempts"][-1]
+    _, verdict, again = prove(robot, result.trajectory)
+    assert again.proven and verdict.standing and again.peak_torque_ratio <= again.envelope_limit
