@@ -44,6 +44,7 @@ from robot_rise.filter import (
     save_start_proof,
     settled_start,
     start_proof_key,
+    stopped_before_torque_bound,
     StartProof,
     stands_under,
     with_ensemble,
@@ -90,10 +91,6 @@ NOT_COMPOSABLE = "not joined by a composed proof: its start proof does not stand
 # iterations ran out (by at least this much in its last one), is filtered again with this many more
 # once no candidate is proven (Wolfgang-OP, a side start: an elbow under the 6.1 kg body came
 # down 1.00 -> 0.99 -> 0.96 in iterations 4-6 as its approach was slowed; the bound is 0.88)
-# a failed attempt over the torque bound is stopped this long before it goes over (its goals then
-# ramp in STOP_RAMP_S to where the joints are) when the robot rises again from where it lies [s]
-STOP_BEFORE_S = 0.1
-STOP_RAMP_S = 0.1
 MORE_ITERATIONS = 6
 MORE_ITERATIONS_MIN_DROP = 0.005
 SAME_TARGETS_RAD = 1e-4  # [rad] a composed approach ending this close to the motion's first targets ends on them (rounding, far below one servo tick of 1.5 mrad): no 0.3 s step there
@@ -649,28 +646,14 @@ def _rise_again_from_where_it_fell(
 def _stopped_before_the_torque_bound(
     robot: Robot, failed: FilterResult, *, scene: str | os.PathLike[str] | None, filter_config: FilterConfig
 ) -> tuple[Trajectory, Recording] | None:
-    """A failed attempt that goes over the torque bound, stopped ``STOP_BEFORE_S`` before it does,
-    as the executor stops: the servos' goals set to where the joints are; and its replay with the
-    judge's hold (None: it never goes over the bound, or already in its first ``STOP_BEFORE_S``).
-
-    The whole failed attempt cannot be the first part of a proven recovery when it goes over the
-    bound (the combined replay goes over it the same way): Wolfgang-OP, a side start whose arm the
-    approach pressed under the body stalled the servo at the envelope, then lay prone and was
-    proven from there, but not after that."""
-    rec, first = failed.recording, failed.trajectory
+    """A failed attempt that goes over the torque bound, stopped before it does
+    (:func:`robot_rise.filter.stopped_before_torque_bound`), and its replay with the judge's hold
+    (None: it never goes over the bound). Wolfgang-OP, a side start whose arm the approach pressed
+    under the body stalled the servo at the envelope, then lay prone and was proven from there,
+    but not after that whole attempt."""
     limit = 1.0 - filter_config.envelope_margin - filter_config.proof_headroom
-    over = np.flatnonzero(rec.envelope_ratio.max(axis=1) > limit)
-    if over.size == 0:
-        return None
-    t_stop = float(rec.t[over[0]]) - STOP_BEFORE_S
-    keep = first.t < t_stop
-    if t_stop <= 0.0 or not keep.any():
-        return None
-    where = np.array([np.interp(t_stop, rec.t, rec.q[:, j]) for j in range(rec.q.shape[1])])
-    where = np.clip(where, robot.joint_lower, robot.joint_upper)
-    stopped = conform(Trajectory(first.robot, first.joint_names, np.append(first.t[keep], t_stop + STOP_RAMP_S), np.vstack([first.q[keep], where]),
-                                 first.start, first.report, None), command_limits_for(robot))
-    return stopped, Player(robot, scene).play(stopped, hold_s=filter_config.hold_s)
+    stopped = stopped_before_torque_bound(failed.trajectory, failed.recording, limit, command_limits_for(robot))
+    return None if stopped is None else (stopped, Player(robot, scene).play(stopped, hold_s=filter_config.hold_s))
 
 
 def _after_the_fall(

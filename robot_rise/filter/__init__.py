@@ -9,6 +9,7 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``violations``: torque, balance and divergence windows of a replay.
 - ``timeline``: the segment (plan, blend, motion, hold) a time falls in; stretches on the feet.
 - ``fall``: why a replay did not end standing.
+- ``stop``: a failed motion cut short before it goes over the torque bound, as the executor stops one.
 - ``slope``: the flat-ground stance turned to sloped ground (paper 000 section 5.2).
 - ``lean``: the lean on arms and feet adapted to a retargeted body (paper 000 section 5.3).
 - ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
@@ -50,6 +51,7 @@ from robot_rise.filter.composed import (
 )
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.fall import describe_fall
+from robot_rise.filter.stop import STOP_BEFORE_S, STOP_RAMP_S, stopped_before_torque_bound
 from robot_rise.filter.join import join_with_blend, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
@@ -147,6 +149,9 @@ __all__ = [
     "scene_digest",
     "stands_under",
     "describe_fall",
+    "STOP_BEFORE_S",
+    "STOP_RAMP_S",
+    "stopped_before_torque_bound",
     "ground_tilt_vector",
     "ankle_joints",
     "slope_ankle_offsets",
