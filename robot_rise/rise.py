@@ -3,7 +3,10 @@
 select (paper 000 section 4.1) -> plan (RRT-blossom, section 4.2) -> smooth and time -> join the
 library motion -> dynamics filter (section 4.3) -> proof. When a candidate fails (no path within
 the budget, or the filter cannot make it stand), the next-nearest library motion is tried; the
-result lists every attempt and why it failed.
+result lists every attempt and why it failed. When every candidate fails, the one the filter gave
+up on while its torque peak was still coming down is filtered with ``MORE_ITERATIONS`` more; then
+the robot rises again from where the failed attempt leaves it lying (the attempt cut short before
+the torque bound where it goes over: ``robot_rise.filter.stopped_before_torque_bound``).
 """
 
 from __future__ import annotations
@@ -67,6 +70,7 @@ from robot_rise.sampling import classify_lying
 from robot_rise.validity import Looseness, ValidityChecker
 
 __all__ = [
+    "MORE_ITERATIONS",
     "connection_room",
     "RiseAttempt",
     "RiseResult",
@@ -309,8 +313,10 @@ def rise(
             the filter's ensemble proof already replays every variant); the first candidate
             that still stands under all of them is returned, else the first proven one (its
             report's ``robustness`` says which check it failed).
-        retries: when every candidate fails but the robot ends lying at rest, rise again from
-            there this many times (the combined motion is proven from the original start).
+        retries: when every candidate fails (the more-iterations pass included) but the robot
+            ends lying at rest, rise again from there this many times (the combined motion is
+            proven from the original start; a failed attempt over the torque bound is cut short
+            before it).
         candidate_rank: ``"duration"`` tries first the motion with the shortest expected get-up
             (approach + rest of the motion), ``"distance"`` the nearest (paper 000);
             :func:`robot_rise.library.connection_candidates`.
@@ -472,21 +478,23 @@ def _rise_candidates(
             continue
         if best_unproven is None:
             best_unproven = result
-        if _short_of_torque(result):
+        if _short_of_torque(result, motion_config):
             short_of_torque.append((result.proof.peak_torque_ratio, conn, commanded, motion_config, len(planned.trajectory.t)))
     if best_proven is None and short_of_torque:
         # every candidate failed; the one nearest the torque bound, still coming down, gets more iterations
         peak, conn, commanded, motion_config, join_row = min(short_of_torque, key=lambda c: c[0])
         say(f"filtering {conn.motion} with {MORE_ITERATIONS} more iterations (peak torque {peak:.2f} and coming down)")
         t0 = time.monotonic()
+        # from its commanded targets again: the filter is deterministic, so its first iterations
+        # repeat (a few nominal replays), and the library part's stretch cap keeps its baseline
         longer = dataclasses.replace(motion_config, max_iterations=motion_config.max_iterations + MORE_ITERATIONS)
         result = dynamics_filter(robot, commanded, scene=scene, config=longer, start=start,
                                  ensemble=context.ensemble() if filter_config.ensemble else None, join_row=join_row)
         t1 = time.monotonic()
         robust = {v.label: stands_under(robot, result.trajectory, v, scene=scene, config=filter_config, start=start) for v in robustness} if result.proven else {}
         attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
-                                    seconds={"filter": t1 - t0, "robustness": time.monotonic() - t1}, robust=all(robust.values()),
-                                    more_iterations=MORE_ITERATIONS))
+                                    seconds={"plan": 0.0, "filter": t1 - t0, "robustness": time.monotonic() - t1}, robust=all(robust.values()),
+                                    more_iterations=MORE_ITERATIONS))  # its plan is the candidate's, counted there
         if result.proven:
             tr = result.trajectory.with_report(attempts=[a.describe() for a in attempts], seconds=attempts[-1].seconds, robustness=robust)
             best_proven = RiseResult(True, tr, tuple(attempts), "", result)
@@ -504,14 +512,15 @@ def _rise_candidates(
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
 
 
-def _short_of_torque(result: FilterResult) -> bool:
-    """The filter gave up on a motion that stood on the nominal model, without self collision, only
-    over the torque bound, and whose peak was still coming down in its last iteration (one the
-    slowing had not finished with, not one stuck where a load no slowing relieves holds it)."""
+def _short_of_torque(result: FilterResult, config: FilterConfig) -> bool:
+    """The filter ran out of iterations (not of stretch or duration) on a motion that stood on the
+    nominal model, without self collision, only over the torque bound, and whose peak was still
+    coming down in its last iteration (one the slowing had not finished with, not one stuck where a
+    load no slowing relieves holds it; with one iteration there is no trend: it counts)."""
     proof, history = result.proof, result.iterations
     coming_down = len(history) < 2 or history[-1].peak_envelope_ratio < history[-2].peak_envelope_ratio - MORE_ITERATIONS_MIN_DROP
-    return (not result.proven and proof.standing and not proof.self_collision and proof.peak_torque_ratio > proof.envelope_limit
-            and len(proof.problems) == 1 and coming_down)
+    return (not result.proven and len(history) >= config.max_iterations and proof.standing and not proof.self_collision
+            and proof.peak_torque_ratio > proof.envelope_limit and len(proof.problems) == 1 and coming_down)
 
 
 def _joining(config: FilterConfig, motion: Motion) -> FilterConfig:
@@ -637,7 +646,8 @@ def _rise_again_from_where_it_fell(
         tried.extend(again.attempts)
         if not again.proven or again.trajectory is None:
             return None
-        combined = _after_the_fall(robot, first, failed.reason, again, scene=scene, filter_config=filter_config, context=context)
+        combined = _after_the_fall(robot, first, failed.reason, again, scene=scene, filter_config=filter_config, context=context,
+                                   stopped=stopped is not None)
         if combined is not None:
             return RiseResult(True, combined, tuple(tried), "", again.filter_result)
     return None
@@ -651,9 +661,13 @@ def _stopped_before_the_torque_bound(
     (None: it never goes over the bound). Wolfgang-OP, a side start whose arm the approach pressed
     under the body stalled the servo at the envelope, then lay prone and was proven from there,
     but not after that whole attempt."""
-    limit = 1.0 - filter_config.envelope_margin - filter_config.proof_headroom
+    limit = failed.proof.envelope_limit  # the bound the attempt failed (the filter's proving one)
     stopped = stopped_before_torque_bound(failed.trajectory, failed.recording, limit, command_limits_for(robot))
-    return None if stopped is None else (stopped, Player(robot, scene).play(stopped, hold_s=filter_config.hold_s))
+    if stopped is None:
+        return None
+    rec = Player(robot, scene).play(stopped, hold_s=filter_config.hold_s)
+    # a stop that goes over the bound itself (the ramp to where the joints are) cannot start a combined proof either
+    return (stopped, rec) if rec.peak_envelope_ratio <= limit else None
 
 
 def _after_the_fall(
@@ -665,9 +679,10 @@ def _after_the_fall(
     scene: str | os.PathLike[str] | None,
     filter_config: FilterConfig,
     context: RiseContext,
+    stopped: bool = False,
 ) -> Trajectory | None:
-    """The failed attempt ``first`` (as far as it was played), its hold and the new rise as one
-    trajectory, proven from the original start (None where it is not)."""
+    """The failed attempt ``first`` (``stopped``: cut short before the torque bound), its hold and
+    the new rise as one trajectory, proven from the original start (None where it is not)."""
     held_until = first.duration_s + filter_config.hold_s
     stage1 = Trajectory(first.robot, first.joint_names, np.append(first.t, held_until), np.vstack([first.q, first.q[-1:]]), first.start, {})
     limits = command_limits_for(robot)
@@ -691,7 +706,8 @@ def _after_the_fall(
     return combined.with_report(
         **{k: v for k, v in again.trajectory.report.items() if k not in entries and k != NOISE_CHECK_KEY},
         **entries,
-        recovery={"first_attempt_until_s": held_until, "first_attempt": first_reason, "then": again.trajectory.report.get("motion")},
+        recovery={"first_attempt_until_s": held_until, "first_attempt": first_reason, "then": again.trajectory.report.get("motion"),
+                  **({"first_attempt_stopped_at_s": first.duration_s} if stopped else {})},
     )
 
 

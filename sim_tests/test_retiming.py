@@ -1,13 +1,13 @@
 """Retiming (robot_rise/authoring/retiming.py): one retiming gives both timings the library author
-tries, the fastest no slower than the one before the coordinate descent, and every one stands."""
+tries, the fastest shorter than the one before the coordinate descent (whose pass/fail plays stop
+at the first player that fails), and both stand on every player."""
 
 from __future__ import annotations
 
-from robot_rise.authoring import motion_specs, settle
+from robot_rise.authoring import motion_specs, robustness_players, settle
 from robot_rise.authoring.keyframes import build_trajectory
 from robot_rise.authoring.retiming import retime, speed_prescale
 from robot_rise.model import load_robot
-from robot_rise.sim.player import Player
 from robot_rise.sim.standing import judge
 
 
@@ -17,10 +17,11 @@ def test_one_retiming_gives_the_fastest_and_the_unrefined_timing_as_two_retiming
     start = settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad)
     # written slower than the servos allow, so the retiming has spare time to take back
     slow = speed_prescale(robot, start, tuple(type(k)(round(2.5 * k.t_s, 3), k.joints) for k in spec.keyframes))
-    player = [Player(robot, "flat")]
-    both = retime(robot, start, slow, player, ratio_target=0.88, max_iter=6, refine_steps=(0.9,))
-    assert both.unrefined == retime(robot, start, slow, player, ratio_target=0.88, max_iter=6, refine_steps=()).fastest
+    players = robustness_players(robot)[:2]  # nominal and a corner: the descent's early stop has a second player to skip
+    both = retime(robot, start, slow, players, ratio_target=0.88, max_iter=6, refine_steps=(0.9,))
+    assert both.unrefined == retime(robot, start, slow, players, ratio_target=0.88, max_iter=6, refine_steps=()).fastest
     assert both.fastest[-1].t_s < both.unrefined[-1].t_s < slow[-1].t_s
     for timing in (both.fastest, both.unrefined):
-        v = judge(player[0].play(build_trajectory(robot, start, timing)))
-        assert v.standing and v.peak_envelope_ratio <= 0.88 + 1e-9, v.summary()
+        for player in players:
+            v = judge(player.play(build_trajectory(robot, start, timing)))
+            assert v.standing and not v.self_collision, v.summary()

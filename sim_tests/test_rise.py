@@ -240,6 +240,6 @@ def test_a_candidate_the_filter_gave_up_on_while_its_torque_came_down_gets_more_
     first, more = result.attempts
     assert not first.proven and first.filter_reason.startswith("torque") and (first.motion, first.frame) == (more.motion, more.frame)
     assert more.proven and more.more_iterations == MORE_ITERATIONS
-    assert "with 6 more filter iterations: proven" in result.trajectory.report["attempts"][-1]
+    assert f"with {MORE_ITERATIONS} more filter iterations: proven" in result.trajectory.report["attempts"][-1]
     _, verdict, again = prove(robot, result.trajectory)
     assert again.proven and verdict.standing and again.peak_torque_ratio <= again.envelope_limit

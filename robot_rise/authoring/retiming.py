@@ -163,8 +163,8 @@ def retime(
     4. :func:`_refine`: coordinate descent from there, one segment at a time, with the factors
        ``refine_steps`` (empty: skip it).
 
-    Returns the fastest feasible timing found and the one before step 4 (both the input's if none
-    was feasible: then the caller's verification fails and reports it). A caller that needs both
+    Returns the fastest feasible timing found and the one before step 4 (both the last timing
+    tried if none was feasible: then the caller's verification fails and reports it). A caller that needs both
     (the library author tries the unrefined timing when the fastest is not proven) retimes once.
 
     Args:

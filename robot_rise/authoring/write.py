@@ -392,8 +392,8 @@ def author_library(
         retimed: Retimed | None = None  # both retimed attempts from one retiming (it is deterministic)
         for attempt in attempts:
             if attempt in ("fastest", "unrefined"):
-                fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
                 if retimed is None:
+                    fine, where = subdivide(robot, start, speed_prescale(robot, start, spec.keyframes))
                     retimed = retime(robot, start, fine, players, ratio_target=RETIME_RATIO_TARGET)
                 elif retimed.unrefined == retimed.fastest:  # the refinement changed nothing: the same proof would fail the same way
                     continue
