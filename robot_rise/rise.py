@@ -618,7 +618,9 @@ def _rise_again_from_where_it_fell(
 
     As a robot would after a failed attempt: the final simulated state (after the judge's hold)
     becomes a new lying posture; the combined targets (failed attempt, its hold, the new rise)
-    are proven by replaying them from the original start.
+    are proven by replaying them from the original start. An attempt that goes over the torque
+    bound is cut short before it first (its replay from there on stands in for the failed one's):
+    the whole of it would go over the bound in the combined replay too.
     """
     first, rec = failed.trajectory, failed.recording
     stopped = _stopped_before_the_torque_bound(robot, failed, scene=scene, filter_config=filter_config)
