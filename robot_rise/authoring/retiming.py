@@ -164,8 +164,9 @@ def retime(
        ``refine_steps`` (empty: skip it).
 
     Returns the fastest feasible timing found and the one before step 4 (both the last timing
-    tried if none was feasible: then the caller's verification fails and reports it). A caller that needs both
-    (the library author tries the unrefined timing when the fastest is not proven) retimes once.
+    tried if none was feasible: then the caller's verification fails and reports it). A caller
+    that needs both (the library author tries the unrefined timing when the fastest is not
+    proven) retimes once.
 
     Args:
         players: :class:`robot_rise.sim.Player` objects on flat ground (nominal and the

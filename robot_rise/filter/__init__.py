@@ -9,7 +9,7 @@ controller and the filter reshapes the targets, never the physics. One concept p
 - ``violations``: torque, balance and divergence windows of a replay.
 - ``timeline``: the segment (plan, blend, motion, hold) a time falls in; stretches on the feet.
 - ``fall``: why a replay did not end standing.
-- ``stop``: a failed motion cut short before it goes over the torque bound, as the executor stops one.
+- ``stop``: a failed motion cut short before it goes over the torque bound (goals to where the joints are).
 - ``slope``: the flat-ground stance turned to sloped ground (paper 000 section 5.2).
 - ``lean``: the lean on arms and feet adapted to a retargeted body (paper 000 section 5.3).
 - ``proof``: the replay judged, the frozen ``Proof``, and ``execution_permit``.
