@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from robot_rise.authoring import motion_specs, robustness_players, settle
 from robot_rise.authoring.keyframes import build_trajectory
-from robot_rise.authoring.retiming import retime, speed_prescale
+from robot_rise.authoring.retiming import RETIME_SAME_FALL_LIMIT, retime, speed_prescale
 from robot_rise.model import load_robot
 from robot_rise.sim.standing import judge
 
@@ -25,3 +25,19 @@ def test_one_retiming_gives_the_fastest_and_the_unrefined_timing_as_two_retiming
         for player in players:
             v = judge(player.play(build_trajectory(robot, start, timing)))
             assert v.standing and not v.self_collision, v.summary()
+
+
+def test_a_motion_that_slowing_does_not_help_stops_being_slowed() -> None:
+    # the prone get-up's lying posture held: within the torque target, never rises, falls the same
+    # way however slowly it is played
+    robot = load_robot()
+    spec = next(s for s in motion_specs(robot) if s.name == "prone_elbow_knees")
+    start = settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad)
+    lying = tuple(type(k)(k.t_s, dict(spec.lying_joints)) for k in spec.keyframes[:2])
+    player = robustness_players(robot)[:1]
+    got = retime(robot, start, lying, player, max_iter=60, refine_steps=())
+    first = speed_prescale(robot, start, lying)[-1].t_s
+    # eight slowings of x1.1 and the ninth play: at most 1.1 ** 8 = 2.14 x (60 slowings: 304 x)
+    assert got.fastest == got.unrefined
+    assert first < got.fastest[-1].t_s <= 1.1 ** RETIME_SAME_FALL_LIMIT * first + 0.01
+    assert not judge(player[0].play(build_trajectory(robot, start, got.fastest))).standing

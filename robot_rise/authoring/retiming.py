@@ -31,6 +31,7 @@ __all__ = [
     "REFINE_MAX_EVALS",
     "REFINE_STEPS",
     "RETIME_RATIO_TARGET",
+    "RETIME_SAME_FALL_LIMIT",
     "SPEED_CAP_FRACTION",
     "SUBDIVIDE_S",
     "Retimed",
@@ -43,6 +44,11 @@ log = logging.getLogger(__name__)
 
 RETIME_RATIO_TARGET = 0.88  # peak torque/envelope after retiming, nominal and the four friction/mass corners (bound 0.9: 0.02 kept as margin for the rise pipeline, which joins planned paths to these motions)
 SPEED_CAP_FRACTION = 0.7  # kinematic pre-scaling: peak joint speed <= this x the servo's no-load speed
+# A motion within the torque target that falls is slowed x1.1 at a time; one that falls the same way
+# (the same judge's reason: where the torso ends up, to the degree) after this many slowings in a row
+# is not one that slowing rescues, so the retiming gives up (a prone get-up that never rose on Bez1's
+# body was slowed fifty times, 7 s to 650 s of motion, 11 minutes of building, before it was stopped).
+RETIME_SAME_FALL_LIMIT = 8
 
 
 def speed_prescale(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...], *, fraction: float = SPEED_CAP_FRACTION, passes: int = 6) -> tuple[Keyframe, ...]:
@@ -164,9 +170,10 @@ def retime(
        ``refine_steps`` (empty: skip it).
 
     Returns the fastest feasible timing found and the one before step 4 (both the last timing
-    tried if none was feasible: then the caller's verification fails and reports it). A caller
-    that needs both (the library author tries the unrefined timing when the fastest is not
-    proven) retimes once.
+    tried if none was feasible: then the caller's verification fails and reports it; the search
+    gives up early on a motion that falls the same way ``RETIME_SAME_FALL_LIMIT`` slowings in a
+    row). A caller that needs both (the library author tries the unrefined timing when the
+    fastest is not proven) retimes once.
 
     Args:
         players: :class:`robot_rise.sim.Player` objects on flat ground (nominal and the
@@ -180,6 +187,7 @@ def retime(
     best: np.ndarray | None = None
     shrunk = np.zeros(len(kfs), dtype=bool)
     trial: np.ndarray | None = None  # restrict the next shortening to these segments (bisection)
+    same_fall = (0, "")  # slowings in a row after which the motion fell the same way, and that way
 
     def to_kfs(d: np.ndarray) -> tuple[Keyframe, ...]:
         t = np.round(np.cumsum(d), 3)
@@ -220,7 +228,12 @@ def retime(
             continue
         if bad.any():
             dur[bad] *= np.clip(1.0 + 2.0 * (seg_peak[bad] - ratio_target), 1.05, 1.4)
-        else:  # within torque but falls: slow everything a little
+            same_fall = (0, "")
+        else:  # within torque but falls: slow everything a little, unless slowing has not changed the fall
+            same_fall = (same_fall[0] + 1, why) if why == same_fall[1] else (1, why)
+            if same_fall[0] > RETIME_SAME_FALL_LIMIT and why != "self collision":
+                log.warning("retime: falls the same way (%s) after %d slowings in a row: giving up at %.2f s", why, RETIME_SAME_FALL_LIMIT, dur.sum())
+                break
             dur *= 1.1
     if best is None:
         log.warning("retime: no feasible timing within %d iterations (last: %.2f s)", max_iter, dur.sum())
