@@ -243,3 +243,20 @@ def test_a_candidate_the_filter_gave_up_on_while_its_torque_came_down_gets_more_
     assert f"with {MORE_ITERATIONS} more filter iterations: proven" in result.trajectory.report["attempts"][-1]
     _, verdict, again = prove(robot, result.trajectory)
     assert again.proven and verdict.standing and again.peak_torque_ratio <= again.envelope_limit
+
+
+def test_the_time_the_filter_added_by_slowing_is_trimmed_and_the_shorter_get_up_proven(robot):
+    """OP3, seed 1, prone posture 3 of the 300-posture protocol: the nominal filter slows windows
+    by whole coarse steps; the time it added is cut back by bisection (``trim_levels`` nominal
+    replays) and the shorter get-up goes through the same noise check and ensemble proof. Without
+    the trim the same rise is the untrimmed one, longer by what the trim says it saved."""
+    posture = sample_lying(robot, "prone", 3, seed=1).postures[2]
+    trimmed = rise(robot, posture, seed=1, candidates=1, retries=0)
+    untrimmed = rise(robot, posture, seed=1, candidates=1, retries=0, filter_config=FilterConfig(trim_levels=0))
+    assert trimmed.proven and untrimmed.proven, (trimmed.reason, untrimmed.reason)
+    trims = trimmed.trajectory.report["trim"]
+    assert [t["kept"] for t in trims] == [True] and untrimmed.trajectory.report["trim"] == []
+    assert trims[0]["untrimmed_duration_s"] == pytest.approx(untrimmed.trajectory.duration_s)
+    assert 0.1 < trims[0]["saved_s"] == pytest.approx(untrimmed.trajectory.duration_s - trimmed.trajectory.duration_s)
+    _, verdict, again = prove(robot, trimmed.trajectory)
+    assert again.proven and verdict.standing and again.peak_torque_ratio <= again.envelope_limit

@@ -75,6 +75,11 @@ class FilterConfig:
         noise_seed: seed of the noise (a proof is repeatable).
         noise_rounds: times (in total, per filter call) a motion a noisy replay breaks is slowed
             there and proven again.
+        trim_levels: once the nominal filter proves a slowed motion, the time its coarse steps
+            added (``slow_factor`` on padded windows) is cut back by bisection over this many
+            nominal replays (``loop._trim``); the shortest proven there then takes the noise check
+            and the ensemble proof at the same margins, and where either fails the untrimmed one
+            takes them as before (0: no trimming).
     """
 
     envelope_margin: float = ENVELOPE_MARGIN
@@ -103,6 +108,7 @@ class FilterConfig:
     noise_hold_s: float = 0.5
     noise_seed: int = 0
     noise_rounds: int = 2
+    trim_levels: int = 3
 
     def proving(self) -> FilterConfig:
         """This configuration as the filter proves with it: the headroom taken off the bound
