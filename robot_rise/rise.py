@@ -561,9 +561,11 @@ def _composed_candidate(
     commanded = join_with_blend(plan, motion.trajectory, 0, blend_s=ARRIVAL_SETTLE_S).with_report(**_join_report(plan, conn))
     join_row = len(plan.t)
     t0 = time.perf_counter()
-    # the noise check is the start proof's (``StartProof.spread_proven``): noise before the settle is forgotten at rest
+    # the noise check is the start proof's (``StartProof.spread_proven``): noise before the settle is forgotten at rest;
+    # untrimmed (``FilterConfig.trim_levels``): the composed proof has no untrimmed approach to fall back on, and the
+    # guard waits for this one
     nominal = dynamics_filter(robot, commanded, scene=scene, config=dataclasses.replace(config, ensemble=False, motion_max_stretch=TAIL_MAX_STRETCH,
-                                                                                        noise_replays=0),
+                                                                                        noise_replays=0, trim_levels=0),
                               start=start, join_row=join_row, stop_at_join=True)
     if not nominal.proven:
         return None, f"the nominal filter, the library part unchanged: {nominal.reason}"

@@ -4,6 +4,8 @@ at the first player that fails), and both stand on every player."""
 
 from __future__ import annotations
 
+import logging
+
 from robot_rise.authoring import motion_specs, robustness_players, settle
 from robot_rise.authoring.keyframes import build_trajectory
 from robot_rise.authoring.retiming import RETIME_SAME_FALL_LIMIT, retime, speed_prescale
@@ -27,7 +29,7 @@ def test_one_retiming_gives_the_fastest_and_the_unrefined_timing_as_two_retiming
             assert v.standing and not v.self_collision, v.summary()
 
 
-def test_a_motion_that_slowing_does_not_help_stops_being_slowed() -> None:
+def test_a_motion_that_slowing_does_not_help_stops_being_slowed(caplog) -> None:
     # the prone get-up's lying posture held: within the torque target, never rises, falls the same
     # way however slowly it is played
     robot = load_robot()
@@ -35,9 +37,10 @@ def test_a_motion_that_slowing_does_not_help_stops_being_slowed() -> None:
     start = settle(robot, spec.lying, spec.lying_joints, yaw_rad=spec.lying_yaw_rad)
     lying = tuple(type(k)(k.t_s, dict(spec.lying_joints)) for k in spec.keyframes[:2])
     player = robustness_players(robot)[:1]
-    got = retime(robot, start, lying, player, max_iter=60, refine_steps=())
+    with caplog.at_level(logging.WARNING, logger="robot_rise.authoring.retiming"):
+        got = retime(robot, start, lying, player, max_iter=60, refine_steps=())
     first = speed_prescale(robot, start, lying)[-1].t_s
-    # eight slowings of x1.1 and the ninth play: at most 1.1 ** 8 = 2.14 x (60 slowings: 304 x)
+    # eight slowings of x1.1 and the ninth play: at most 1.1 ** 8 = 2.14 x (the 59 slowings max_iter allows: 278 x)
     assert got.fastest == got.unrefined
     assert first < got.fastest[-1].t_s <= 1.1 ** RETIME_SAME_FALL_LIMIT * first + 0.01
-    assert not judge(player[0].play(build_trajectory(robot, start, got.fastest))).standing
+    assert "falls the same way" in caplog.text and f"after {RETIME_SAME_FALL_LIMIT} slowings in a row" in caplog.text

@@ -31,6 +31,7 @@ __all__ = [
     "REFINE_MAX_EVALS",
     "REFINE_STEPS",
     "RETIME_RATIO_TARGET",
+    "RETIME_RISE_PROGRESS",
     "RETIME_SAME_FALL_LIMIT",
     "SPEED_CAP_FRACTION",
     "SUBDIVIDE_S",
@@ -45,10 +46,12 @@ log = logging.getLogger(__name__)
 RETIME_RATIO_TARGET = 0.88  # peak torque/envelope after retiming, nominal and the four friction/mass corners (bound 0.9: 0.02 kept as margin for the rise pipeline, which joins planned paths to these motions)
 SPEED_CAP_FRACTION = 0.7  # kinematic pre-scaling: peak joint speed <= this x the servo's no-load speed
 # A motion within the torque target that falls is slowed x1.1 at a time; one that falls the same way
-# (the same judge's reason: where the torso ends up, to the degree) after this many slowings in a row
-# is not one that slowing rescues, so the retiming gives up (a prone get-up that never rose on Bez1's
-# body was slowed fifty times, 7 s to 650 s of motion, 11 minutes of building, before it was stopped).
+# (the same judge's reason) and rises no higher (the torso's highest point, within
+# RETIME_RISE_PROGRESS of the stand height) after this many slowings in a row is not one that
+# slowing rescues, so the retiming gives up (a prone get-up that never rose on Bez1's body was
+# slowed fifty times, 7 s to 650 s of motion, 11 minutes of building, before it was stopped).
 RETIME_SAME_FALL_LIMIT = 8
+RETIME_RISE_PROGRESS = 0.02
 
 
 def speed_prescale(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...], *, fraction: float = SPEED_CAP_FRACTION, passes: int = 6) -> tuple[Keyframe, ...]:
@@ -107,15 +110,17 @@ def subdivide(robot: Robot, start: Posture, keyframes: tuple[Keyframe, ...], *, 
 
 
 def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: Sequence[Player], *,
-              stop_above: float | None = None) -> tuple[np.ndarray, bool, str]:
+              stop_above: float | None = None) -> tuple[np.ndarray, bool, str, float]:
     """Play ``kfs`` on every player: per-segment peak torque/envelope ratio (max over players,
-    including the 0.2 s after each segment, where a late tracking error shows) and whether every
-    play stands without self collision (and why not). ``stop_above``: stop at the first player
-    that fails or peaks above it (a pass/fail question: the peaks returned then are partial)."""
+    including the 0.2 s after each segment, where a late tracking error shows), whether every
+    play stands without self collision, why not, and how high the first play that failed got
+    (the torso's highest point over its stand height; 1 when none failed). ``stop_above``: stop
+    at the first player that fails or peaks above it (a pass/fail question: the peaks returned
+    then are partial)."""
     tr = build_trajectory(robot, start, kfs)
     times = np.array([0.0] + [k.t_s for k in kfs])
     seg_peak = np.zeros(len(kfs))
-    ok, why = True, ""
+    ok, why, rose = True, "", 1.0
     for player in players:
         rec = player.play(tr)
         peak_ratio = rec.envelope_ratio.max(axis=1)
@@ -124,12 +129,12 @@ def _evaluate(robot: Robot, start: Posture, kfs: tuple[Keyframe, ...], players: 
             if sel.any():
                 seg_peak[i] = max(seg_peak[i], float(peak_ratio[sel].max()))
         v = judge(rec)
-        if not v.standing or v.self_collision:
-            ok = False
-            why = why or (v.reason if not v.standing else "self collision")
+        if (not v.standing or v.self_collision) and ok:
+            ok, why = False, v.reason if not v.standing else "self collision"
+            rose = float(np.max(rec.torso_height_m, initial=0.0)) / rec.stand_height_m
         if stop_above is not None and (not ok or (seg_peak > stop_above).any()):
             break
-    return seg_peak, ok, why
+    return seg_peak, ok, why, rose
 
 
 @dataclass(frozen=True)
@@ -187,14 +192,14 @@ def retime(
     best: np.ndarray | None = None
     shrunk = np.zeros(len(kfs), dtype=bool)
     trial: np.ndarray | None = None  # restrict the next shortening to these segments (bisection)
-    same_fall = (0, "")  # slowings in a row after which the motion fell the same way, and that way
+    same_fall = (0, "", 0.0)  # slowings in a row after which the motion fell the same way, that way, how high it got
 
     def to_kfs(d: np.ndarray) -> tuple[Keyframe, ...]:
         t = np.round(np.cumsum(d), 3)
         return tuple(Keyframe(float(ti), g) for ti, g in zip(t, goals))
 
     for it in range(max_iter):
-        seg_peak, ok, why = _evaluate(robot, start, to_kfs(dur), plist)
+        seg_peak, ok, why, rose = _evaluate(robot, start, to_kfs(dur), plist)
         bad = seg_peak > ratio_target
         feasible = ok and not bad.any()
         log.info("retime %d: %.2f s, peak %.2f, %s", it, dur.sum(), seg_peak.max(), "ok" if feasible else (why or "torque"))
@@ -228,11 +233,14 @@ def retime(
             continue
         if bad.any():
             dur[bad] *= np.clip(1.0 + 2.0 * (seg_peak[bad] - ratio_target), 1.05, 1.4)
-            same_fall = (0, "")
+            same_fall = (0, "", 0.0)
         else:  # within torque but falls: slow everything a little, unless slowing has not changed the fall
-            same_fall = (same_fall[0] + 1, why) if why == same_fall[1] else (1, why)
+            n, way, height = same_fall
+            same_fall = (n + 1, way, height) if why == way and rose < height + RETIME_RISE_PROGRESS else (1, why, rose)
+            # (a self collision is exempt: slowing takes the overshoot out of a limb that grazes another)
             if same_fall[0] > RETIME_SAME_FALL_LIMIT and why != "self collision":
-                log.warning("retime: falls the same way (%s) after %d slowings in a row: giving up at %.2f s", why, RETIME_SAME_FALL_LIMIT, dur.sum())
+                log.warning("retime: falls the same way (%s, rising to %.0f %% of the stand height) after %d slowings in a row: giving up at %.2f s",
+                            why, 100 * same_fall[2], RETIME_SAME_FALL_LIMIT, dur.sum())
                 break
             dur *= 1.1
     if best is None:
@@ -278,7 +286,7 @@ def _refine(
                 trial[i] *= step
                 kfs = tuple(Keyframe(float(t), g) for t, g in zip(np.round(np.cumsum(trial), 3), goals))
                 # pass or fail is all that is asked: the first failing player answers it
-                seg_peak, ok, _ = _evaluate(robot, start, kfs, players, stop_above=ratio_target)
+                seg_peak, ok, _, _ = _evaluate(robot, start, kfs, players, stop_above=ratio_target)
                 n_evals += 1
                 if ok and (seg_peak <= ratio_target).all():
                     dur = trial

@@ -79,7 +79,7 @@ class FilterConfig:
             added (``slow_factor`` on padded windows) is cut back by bisection over this many
             nominal replays (``loop._trim``); the shortest proven there then takes the noise check
             and the ensemble proof at the same margins, and where either fails the untrimmed one
-            takes them as before (0: no trimming).
+            takes them as before (0: no trimming; ``rise``'s composed proof does not trim).
     """
 
     envelope_margin: float = ENVELOPE_MARGIN

@@ -72,6 +72,8 @@ __all__ = ["FilterIteration", "FilterResult", "dynamics_filter"]
 
 log = logging.getLogger(__name__)
 
+MIN_TRIM_S = 0.01  # a trim that saves less is not kept (its replays were spent on conforming's own stretch) [s]
+
 
 @dataclass(frozen=True)
 class FilterIteration:
@@ -223,7 +225,7 @@ def dynamics_filter(
         if failures and untrimmed is not None:  # the trimmed timing is a fluke of the nominal model: the untrimmed one, as proven
             log.info("trimmed: %d variants fall; untrimmed", len(failures))
             trims[-1]["kept"] = False
-            result, untrimmed = noised(*untrimmed), None
+            result, untrimmed, recs = noised(*untrimmed), None, []
             continue
         if not failures or rounds >= config.ensemble_rounds:
             break
@@ -386,7 +388,7 @@ def _trim(
     allowed = len([v for v in find_violations(result.recording, config, saturation_rad=saturation) if v.t_start_s <= final.duration_s])
     one = dataclasses.replace(config, max_iterations=1, soft_iterations=0)
     best: tuple[float, FilterResult] | None = None
-    lo, hi = 0.0, 1.0  # the fraction of the added time: lo not proven (the guess's timing), hi proven
+    lo, hi = 0.0, 1.0  # the fraction of the added time kept: hi proven, lo not (or, at 0, the guess's own timing, not replayed here)
     for _ in range(config.trim_levels):
         mid = 0.5 * (lo + hi)
         tried = dataclasses.replace(final, t=guess.t + mid * added, report=guess.report)
@@ -402,12 +404,16 @@ def _trim(
         return None
     alpha, res = best
     saved = final.duration_s - res.trajectory.duration_s
+    if saved <= MIN_TRIM_S:  # the time added was conforming's, which every replay puts back
+        return None
     log.info("trimmed: %.2f s of the filter's %.2f s of slowing kept, %.2f s sooner", alpha * float(added[-1]), float(added[-1]), saved)
     # the untrimmed result's filter history first: the trimmed one's iteration is its last
     n = len(result.iterations)
     ours = dataclasses.replace(res.iterations[0], iteration=n + 1)
     history = result.report.get("filter_history", []) + [{**h, "iteration": n + 1} for h in res.report.get("filter_history", [])]
-    entries = {"filter_iterations": len(history), "filter_history": history}
+    # the rows are the untrimmed result's, so is what turned the stance or adapted the lean in them
+    carried = {k: result.report[k] for k in ("slope_stance", "lean_adapted") if k in result.report}
+    entries = {**carried, "filter_iterations": len(history), "filter_history": history}
     res = dataclasses.replace(res, iterations=result.iterations + (ours,), report={**res.report, **entries},
                               trajectory=res.trajectory.with_report(**entries))
     return res, {"fraction_kept": alpha, "saved_s": saved, "untrimmed_duration_s": final.duration_s, "kept": True}
