@@ -176,8 +176,8 @@ def retime(
 
     Returns the fastest feasible timing found and the one before step 4 (both the last timing
     tried if none was feasible: then the caller's verification fails and reports it; the search
-    gives up early on a motion that falls the same way ``RETIME_SAME_FALL_LIMIT`` slowings in a
-    row). A caller that needs both (the library author tries the unrefined timing when the
+    gives up early on a motion that falls the same way, rising no higher, ``RETIME_SAME_FALL_LIMIT``
+    slowings in a row). A caller that needs both (the library author tries the unrefined timing when the
     fastest is not proven) retimes once.
 
     Args:

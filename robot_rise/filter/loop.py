@@ -29,7 +29,7 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
    a proven result's slowing (whole padded windows x``slow_factor``: a sample at 0.905 of the
    envelope costs ~0.2 s) is trimmed back by bisection over ``trim_levels`` nominal replays
    (``_trim``), and the shortest proven so takes step 6 in its place, the untrimmed one where it
-   fails them (on 30 OP3 rises the median get-up 4.90 -> 4.41 s);
+   fails them (OP3, the 300-posture protocol: median get-up 5.01 -> 4.80 s);
 6. once proven on the nominal model, replay it with 1e-6 rad of target noise (``noise.py``) and
    slow where a noisy replay breaks, then on every model variant (``ensemble.py``) and slow where
    a variant falls, each a few rounds.
@@ -73,6 +73,7 @@ __all__ = ["FilterIteration", "FilterResult", "dynamics_filter"]
 log = logging.getLogger(__name__)
 
 MIN_TRIM_S = 0.01  # a trim that saves less is not kept (its replays were spent on conforming's own stretch) [s]
+TRIM_KEY = "trim"  # the report's list of what each trim cut (``_trim``)
 
 
 @dataclass(frozen=True)
@@ -242,7 +243,7 @@ def dynamics_filter(
             break
         result, recs = again, []
     # what the executor needs: the limits it was proven under, the positions to expect
-    executed = {"trim": trims, COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
+    executed = {TRIM_KEY: trims, COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
                 COMBINED_VARIANTS_KEY: config.combined_variants,
                 "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds, "noise_rounds": noise_rounds}
     return dataclasses.replace(result, report={**result.report, **executed},
