@@ -457,7 +457,7 @@ def _rise_candidates(
         robust: dict[str, bool] = {}
         if result.proven:
             say("checking robustness to model errors")
-            robust = {v.label: stands_under(robot, result.trajectory, v, scene=scene, config=filter_config, start=start) for v in robustness}
+            robust = _robustness(robot, result.trajectory, robustness, scene=scene, filter_config=filter_config, start=start)
         t3 = time.monotonic()
         attempt = RiseAttempt(
             conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
@@ -491,7 +491,7 @@ def _rise_candidates(
         result = dynamics_filter(robot, commanded, scene=scene, config=longer, start=start,
                                  ensemble=context.ensemble() if filter_config.ensemble else None, join_row=join_row)
         t1 = time.monotonic()
-        robust = {v.label: stands_under(robot, result.trajectory, v, scene=scene, config=filter_config, start=start) for v in robustness} if result.proven else {}
+        robust = _robustness(robot, result.trajectory, robustness, scene=scene, filter_config=filter_config, start=start) if result.proven else {}
         attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
                                     seconds={"plan": 0.0, "filter": t1 - t0, "robustness": time.monotonic() - t1}, robust=all(robust.values()),
                                     more_iterations=MORE_ITERATIONS))  # its plan is the candidate's, counted there
@@ -510,6 +510,12 @@ def _rise_candidates(
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _robustness(robot: Robot, trajectory: Trajectory, variants: tuple[ModelVariant, ...], *, scene: str | os.PathLike[str] | None,
+                filter_config: FilterConfig, start: Posture) -> dict[str, bool]:
+    """Per robustness variant (by label): does ``trajectory`` still stand under it."""
+    return {v.label: stands_under(robot, trajectory, v, scene=scene, config=filter_config, start=start) for v in variants}
 
 
 def _short_of_torque(result: FilterResult, config: FilterConfig) -> bool:

@@ -37,7 +37,7 @@ def stopped_before_torque_bound(trajectory: Trajectory, recording: Recording, li
     if t_stop <= 0.0:
         return None
     keep = trajectory.t < t_stop
-    at_cut = np.array([np.interp(t_stop, trajectory.t, trajectory.q[:, j]) for j in range(trajectory.q.shape[1])])
+    at_cut = trajectory.sample(np.array([t_stop]))[0]
     cols = [recording.joint_names.index(j) for j in trajectory.joint_names]  # the recording is in the robot's joint order
     where = np.array([np.interp(t_stop, recording.t, recording.q[:, c]) for c in cols])
     stopped = Trajectory(trajectory.robot, trajectory.joint_names, np.concatenate([trajectory.t[keep], [t_stop, t_stop + ramp_s]]),
