@@ -116,6 +116,7 @@ class RiseAttempt:
     blocked: str = ""  # why the motion has no room where it would go (placement.motion_room); nothing was planned
     skipped: str = ""  # why this pass does not try the motion (rise(composed=True): not composable); nothing was planned
     more_iterations: int = 0  # the candidate filtered again with this many more iterations (MORE_ITERATIONS)
+    cautious: bool = False  # the fast approach went off plan; the same path was filtered again with the cautious timing
 
     def describe(self) -> str:
         if self.skipped:
@@ -125,6 +126,7 @@ class RiseAttempt:
         if not self.planned:
             return f"{self.motion}@{self.frame}: no path ({self.plan_reason})"
         again = f" with {self.more_iterations} more filter iterations" if self.more_iterations else ""
+        again += " (off plan: cautious approach tried)" if self.cautious else ""
         if not self.proven:
             return f"{self.motion}@{self.frame}{again}: not proven ({self.filter_reason})"
         return f"{self.motion}@{self.frame}{again}: proven" + ("" if self.robust else ", not robust to model errors")
@@ -441,14 +443,14 @@ def _rise_candidates(
                                      ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
             if result.proven:
                 break
-        if not result.proven and planned.smoothed is not None and _approach_off_plan(result, len(planned.trajectory.t)):
+        cautious_tried = not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory)
+        if cautious_tried:
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
             say(f"filtering {conn.motion} with the cautious approach timing")
             cautious = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
                                            planned.trajectory.report)
             slow = join_with_blend(cautious, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
-                **commanded.report, plan_duration_s=cautious.duration_s, plan_rows=len(cautious.t), approach_timing="cautious",
-                blend_s=filter_config.blend_s)
+                **_join_report(cautious, conn), approach_timing="cautious", blend_s=filter_config.blend_s)
             again = dynamics_filter(robot, slow, scene=scene, config=motion_config, start=start,
                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
             if again.proven:
@@ -461,7 +463,7 @@ def _rise_candidates(
         t3 = time.monotonic()
         attempt = RiseAttempt(
             conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
-            seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()),
+            seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()), cautious=cautious_tried,
         )
         attempts.append(attempt)
         extra: dict[str, Any] = {
@@ -597,15 +599,18 @@ def _composable(context: RiseContext, motion: Motion, config: FilterConfig) -> b
     return start_proof is not None and start_proof.composable
 
 
-def _approach_off_plan(result: FilterResult, plan_rows: int) -> bool:
+def _approach_off_plan(result: FilterResult, plan: Trajectory) -> bool:
     """The simulated body ended the planned approach lying otherwise than planned: its gravity
-    direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's."""
-    tr, rec = result.trajectory, result.recording
-    if tr.root is None or not 0 < plan_rows <= len(tr.t) or len(rec.t) == 0:
-        return False
-    k = min(int(np.searchsorted(rec.t, tr.t[plan_rows - 1])), len(rec.t) - 1)
-    return bool(gravity_angle_rad(rec.root_pose[k, 3:], tr.root[plan_rows - 1, 3:]) > APPROACH_OFF_PLAN_RAD)
+    direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's.
 
+    The planned root comes from ``plan`` (the filter's output carries no root: its rows are the
+    plan's rows, retimed, so row ``len(plan.t) - 1`` still ends the approach)."""
+    tr, rec = result.trajectory, result.recording
+    end = len(plan.t) - 1
+    if plan.root is None or not 0 <= end < len(tr.t) or len(rec.t) == 0:
+        return False
+    k = min(int(np.searchsorted(rec.t, tr.t[end])), len(rec.t) - 1)
+    return bool(gravity_angle_rad(rec.root_pose[k, 3:], plan.root[end, 3:]) > APPROACH_OFF_PLAN_RAD)
 
 
 def _rise_again_from_where_it_fell(

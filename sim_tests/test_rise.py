@@ -261,3 +261,18 @@ def test_the_time_the_filter_added_by_slowing_is_trimmed_and_the_shorter_get_up_
     # check replays it as a user would: nominal, fresh noisy replays, every ensemble variant
     write_trajectory(tmp_path / "trimmed.json", trimmed.trajectory)
     assert main(["check", str(tmp_path / "trimmed.json")]) == 0, capsys.readouterr().out
+
+
+def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautious_timing(robot):
+    """OP3, seed 1, right-side posture 3 of the 300-posture protocol: the fastest approach to
+    prone_elbow_knees_quick tips the body onto its back (its gravity direction > 0.5 rad from the
+    planned one where the approach ends), so the same path is filtered again, cautiously timed.
+    The filter's output carries no root; the planned one is the plan's (a bug hid this retry)."""
+    posture = sample_lying(robot, "right", 5, seed=1).postures[2]
+    result = rise(robot, posture, seed=1, candidates=1, retries=0)
+    first = result.attempts[0]
+    assert first.planned and first.cautious and not first.proven, first.describe()
+    assert "cautious approach tried" in first.describe()
+    # an approach that ends where it was planned is not retried
+    prone = rise(robot, sample_lying(robot, "prone", 3, seed=1).postures[2], seed=1, candidates=1, retries=0)
+    assert prone.proven and not prone.attempts[0].cautious
