@@ -256,6 +256,8 @@ def test_the_time_the_filter_added_by_slowing_is_trimmed_and_the_shorter_get_up_
     assert trimmed.proven and untrimmed.proven, (trimmed.reason, untrimmed.reason)
     trims = trimmed.trajectory.report["trim"]
     assert [t["kept"] for t in trims] == [True] and untrimmed.trajectory.report["trim"] == []
+    # kept because the timing it was cut from stands on every ensemble variant too
+    assert trims[0]["untrimmed_ensemble_standing"] == untrimmed.trajectory.report["ensemble"]["size"] > 0
     assert trims[0]["untrimmed_duration_s"] == pytest.approx(untrimmed.trajectory.duration_s)
     assert 0.1 < trims[0]["saved_s"] == pytest.approx(untrimmed.trajectory.duration_s - trimmed.trajectory.duration_s)
     # check replays it as a user would: nominal, fresh noisy replays, every ensemble variant
@@ -276,3 +278,16 @@ def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautio
     # an approach that ends where it was planned is not retried
     prone = rise(robot, sample_lying(robot, "prone", 3, seed=1).postures[2], seed=1, candidates=1, retries=0)
     assert prone.proven and not prone.attempts[0].cautious
+
+
+def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
+    """OP3, seed 1, prone posture 99 of the 300-posture protocol: the trimmed timing passed all 19
+    ensemble variants where the untrimmed one it was cut from fails 4 (and stood in 42 of 50
+    random variants): a second timing against the same fixed variants is a second chance to pass
+    them by luck. The trim is not kept; the untrimmed timing goes on as if untrimmed."""
+    posture = sample_lying(robot, "prone", 100, seed=1).postures[98]
+    result = rise(robot, posture, seed=1, candidates=1, retries=0)
+    trims = result.trajectory.report["trim"]
+    assert trims and trims[0]["kept"] is False, trims
+    assert 0 < trims[0]["untrimmed_ensemble_standing"] < 19
+    assert not result.proven or result.trajectory.duration_s >= trims[0]["untrimmed_duration_s"] - 1e-9
