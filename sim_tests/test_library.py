@@ -368,7 +368,7 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
     index = FrameIndex.build(LIBRARY, ROBOT)
     reach = np.array([MAX_ROLL_ONTO_FRONT_RAD if LIBRARY.get(index.motion_names[m]).lying == "prone" else MAX_ROOT_TURN_RAD
                       for m in index.motion_id])
-    for name in ("prone_knees_first", "supine_backroll_kneel", "left_tip_elbow_knees"):
+    for name in ("prone_knees_first", "supine_backroll_kneel", "supine_backroll_pushup", "left_tip_elbow_knees"):
         start = LIBRARY.get(name).start
         by_time = connection_candidates(LIBRARY, ROBOT, start, 3, index=index, rank="duration")
         by_distance = connection_candidates(LIBRARY, ROBOT, start, 3, index=index, rank="distance")
@@ -392,13 +392,15 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
         assert all(LIBRARY.get(c.motion).max_stretch is not None for c in by_time[:lead])
         assert (by_distance[0].motion, by_distance[0].frame) in [(c.motion, c.frame) for c in by_time[:lead + 2]]
         assert {c.motion for c in by_distance[:2]} <= {c.motion for c in by_time}  # the two nearest motions are still tried
-        if name == "supine_backroll_kneel":  # the sit-up is the quickest from the back, the roll the quickest without a timing window
-            assert [c.motion for c in by_time[:lead + 1]][0] == "supine_situp_rock_robust"
-            assert LIBRARY.get(by_time[lead].motion).duration_s < LIBRARY.get("supine_backroll_kneel").duration_s
+        if name.startswith("supine_backroll"):  # from a backroll's start a quicker get-up without a timing window is tried first or
+            # right after the sit-up (the quickest from where its arms are overhead)
+            assert by_time[0].motion != name and LIBRARY.get(by_time[lead].motion).duration_s < LIBRARY.get(name).duration_s
+            if name == "supine_backroll_pushup":
+                assert by_time[0].motion == "supine_situp_rock_robust" and lead == 1
         assert len({c.motion for c in by_time}) == len(by_time) == len(by_distance) + min(lead, 1)
-        if name == "left_tip_elbow_knees":  # the quick side motion (it tips onto the front itself) comes first; joining
-            # the quick prone motion by rolling onto the front (beyond the turn reach of other kinds) is still a candidate
-            assert by_time[0].motion == "left_tip_elbow_knees" and by_time[0].frame == 0
+        if name == "left_tip_elbow_knees":  # the side motion (it tips onto the front itself) from its start, and joining the
+            # quick prone motion by rolling onto the front (beyond the turn reach of other kinds), are both candidates
+            assert ("left_tip_elbow_knees", 0) in [(c.motion, c.frame) for c in by_time[:2]]
             rolled = [rows[(c.motion, c.frame)] for c in by_time if LIBRARY.get(c.motion).lying == "prone"]
             assert rolled and all(MAX_ROOT_TURN_RAD < turn[r] <= MAX_ROLL_ONTO_FRONT_RAD for r in rolled)
     with pytest.raises(ValueError, match="rank"):
