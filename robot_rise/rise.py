@@ -116,7 +116,7 @@ class RiseAttempt:
     blocked: str = ""  # why the motion has no room where it would go (placement.motion_room); nothing was planned
     skipped: str = ""  # why this pass does not try the motion (rise(composed=True): not composable); nothing was planned
     more_iterations: int = 0  # the candidate filtered again with this many more iterations (MORE_ITERATIONS)
-    cautious: bool = False  # the fast approach went off plan; the same path was filtered again with the cautious timing
+    cautious: str = ""  # the fast approach went off plan, so the same path was filtered again cautiously timed: "proven" or why not
 
     def describe(self) -> str:
         if self.skipped:
@@ -126,7 +126,7 @@ class RiseAttempt:
         if not self.planned:
             return f"{self.motion}@{self.frame}: no path ({self.plan_reason})"
         again = f" with {self.more_iterations} more filter iterations" if self.more_iterations else ""
-        again += " (off plan: cautious approach tried)" if self.cautious else ""
+        again += f" (off plan; cautiously timed: {self.cautious})" if self.cautious else ""
         if not self.proven:
             return f"{self.motion}@{self.frame}{again}: not proven ({self.filter_reason})"
         return f"{self.motion}@{self.frame}{again}: proven" + ("" if self.robust else ", not robust to model errors")
@@ -443,8 +443,8 @@ def _rise_candidates(
                                      ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
             if result.proven:
                 break
-        cautious_tried = not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory)
-        if cautious_tried:
+        cautious = ""
+        if not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory, len(commanded.t)):
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
             say(f"filtering {conn.motion} with the cautious approach timing")
             cautious = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
@@ -453,6 +453,7 @@ def _rise_candidates(
                 **_join_report(cautious, conn), approach_timing="cautious", blend_s=filter_config.blend_s)
             again = dynamics_filter(robot, slow, scene=scene, config=motion_config, start=start,
                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
+            cautious = "proven" if again.proven else again.reason or "not proven"
             if again.proven:
                 result = again
         t2 = time.monotonic()
@@ -463,7 +464,7 @@ def _rise_candidates(
         t3 = time.monotonic()
         attempt = RiseAttempt(
             conn.motion, conn.frame, conn.distance, True, proven=result.proven, filter_reason=result.reason,
-            seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()), cautious=cautious_tried,
+            seconds={"plan": t1 - t0, "filter": t2 - t1, "robustness": t3 - t2}, robust=all(robust.values()), cautious=cautious,
         )
         attempts.append(attempt)
         extra: dict[str, Any] = {
@@ -599,15 +600,16 @@ def _composable(context: RiseContext, motion: Motion, config: FilterConfig) -> b
     return start_proof is not None and start_proof.composable
 
 
-def _approach_off_plan(result: FilterResult, plan: Trajectory) -> bool:
+def _approach_off_plan(result: FilterResult, plan: Trajectory, commanded_rows: int) -> bool:
     """The simulated body ended the planned approach lying otherwise than planned: its gravity
     direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's.
 
-    The planned root comes from ``plan`` (the filter's output carries no root: its rows are the
-    plan's rows, retimed, so row ``len(plan.t) - 1`` still ends the approach)."""
+    The planned root comes from ``plan`` (the filter's output carries no root): the filter only
+    retimes the ``commanded_rows`` it was given, so row ``len(plan.t) - 1`` still ends the
+    approach; where the rows differ, nothing is said."""
     tr, rec = result.trajectory, result.recording
     end = len(plan.t) - 1
-    if plan.root is None or not 0 <= end < len(tr.t) or len(rec.t) == 0:
+    if plan.root is None or len(tr.t) != commanded_rows or not 0 <= end < len(tr.t) or len(rec.t) == 0:
         return False
     k = min(int(np.searchsorted(rec.t, tr.t[end])), len(rec.t) - 1)
     return bool(gravity_angle_rad(rec.root_pose[k, 3:], plan.root[end, 3:]) > APPROACH_OFF_PLAN_RAD)

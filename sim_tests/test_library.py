@@ -397,10 +397,13 @@ def test_duration_ranking_tries_the_quickest_get_up_first_then_the_nearest() -> 
             assert by_time[0].motion != name and LIBRARY.get(by_time[lead].motion).duration_s < LIBRARY.get(name).duration_s
             if name == "supine_backroll_pushup":
                 assert by_time[0].motion == "supine_situp_rock_robust" and lead == 1
+            else:  # from the kneeling backroll's start (arms out) a roll (3.6 s) beats the sit-up
+                assert by_time[0].motion.startswith("supine_roll") and lead == 0
         assert len({c.motion for c in by_time}) == len(by_time) == len(by_distance) + min(lead, 1)
         if name == "left_tip_elbow_knees":  # the side motion (it tips onto the front itself) from its start, and joining the
             # quick prone motion by rolling onto the front (beyond the turn reach of other kinds), are both candidates
-            assert ("left_tip_elbow_knees", 0) in [(c.motion, c.frame) for c in by_time[:2]]
+            # (the 1.73 s prone motion is expected sooner than the 3.1 s tip from the tip's own start)
+            assert [(c.motion, c.frame) for c in by_time[:2]] == [("prone_elbow_knees_quick", 16), ("left_tip_elbow_knees", 0)]
             rolled = [rows[(c.motion, c.frame)] for c in by_time if LIBRARY.get(c.motion).lying == "prone"]
             assert rolled and all(MAX_ROOT_TURN_RAD < turn[r] <= MAX_ROLL_ONTO_FRONT_RAD for r in rolled)
     with pytest.raises(ValueError, match="rank"):

@@ -28,10 +28,10 @@ targets ARE what the servos receive) and the filter reshapes the targets, never 
 5. iterate until everything passes or ``max_iterations`` is reached, then say why not;
    a proven result's slowing (whole padded windows x``slow_factor``: a sample at 0.905 of the
    envelope costs ~0.2 s) is trimmed back by bisection over ``trim_levels`` nominal replays
-   (``_trim``), and the shortest proven so takes step 6 in its place, the untrimmed one where it
-   fails them or where the untrimmed one fails the ensemble (a second timing tried against the
-   same fixed variants is a second chance to pass them by luck) (OP3, the 300-posture protocol:
-   median get-up 5.01 -> 4.80 s);
+   (``_trim``), and the shortest proven so takes step 6 in its place; the untrimmed one goes on
+   where the trimmed one fails them, and where the untrimmed one itself fails the ensemble (its
+   variants replayed first: a second timing tried against the same fixed variants is a second
+   chance to pass them by luck; one more ensemble replay per kept trim);
 6. once proven on the nominal model, replay it with 1e-6 rad of target noise (``noise.py``) and
    slow where a noisy replay breaks, then on every model variant (``ensemble.py``) and slow where
    a variant falls, each a few rounds.
@@ -56,7 +56,7 @@ import numpy as np
 
 from robot_rise.filter.command_limits import COMMAND_LIMITS_KEY, CommandLimits, command_limits_for, conform
 from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, with_ensemble
+from robot_rise.filter.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, EnsembleResult, with_ensemble
 from robot_rise.filter.join import time_scale
 from robot_rise.filter.prediction import PREDICTED_KEY, predicted_positions
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
@@ -192,7 +192,8 @@ def dynamics_filter(
     def nominal(guess: Trajectory, stop: bool) -> FilterResult:
         """The nominal filter, its slowing trimmed (``_trim``), then its noise check, slowing where a noisy replay breaks.
         A trimmed result a noisy replay breaks gives way to the untrimmed one (``untrimmed`` keeps it
-        for the ensemble: a trimmed result a variant falls with gives way to it too)."""
+        for the ensemble: the trim gives way to it too where a variant falls with either timing;
+        the untrimmed one then goes on to the ensemble's slowing rounds)."""
         nonlocal untrimmed
         result = _nominal_filter(robot, guess, player, scene=scene, config=config, start=start, protect_until_s=protect_until_s,
                                  progress=progress, limits=limits, join_row=join_row, stop_at_join=stop)
@@ -210,14 +211,43 @@ def dynamics_filter(
                 log.info("trimmed: a noisy replay breaks it; untrimmed")
         return noised(result, stop)
 
+    def replay(tr: Trajectory) -> tuple[EnsembleResult, list[Recording]]:
+        nonlocal ensemble_s
+        t0 = time.perf_counter()
+        assert ensemble is not None
+        out = ensemble.replay(tr, start=start, config=config)
+        ensemble_s += time.perf_counter() - t0
+        return out
+
+    def fall_back(base: FilterResult, stop: bool, replayed: tuple[EnsembleResult, list[Recording]]
+                  ) -> tuple[FilterResult, tuple[EnsembleResult, list[Recording]] | None]:
+        """The untrimmed result, noise checked, and its ensemble replay where the check kept its timing."""
+        checked = noised(base, stop)
+        return checked, (replayed if np.array_equal(checked.trajectory.t, base.trajectory.t) else None)
+
     result = nominal(commanded, stop_at_join)
     rounds = 0
     recs: list[Recording] = []
     ensemble_s = 0.0
+    known: tuple[EnsembleResult, list[Recording]] | None = None  # ``result``'s ensemble replay, where already done
+    pending: tuple[FilterResult, bool, tuple[EnsembleResult, list[Recording]]] | None = None  # a trim's untrimmed result that stood
     while ensemble is not None and result.proven:
-        t0 = time.perf_counter()
-        replayed, recs = ensemble.replay(result.trajectory, start=start, config=config)
-        ensemble_s += time.perf_counter() - t0
+        if untrimmed is not None:
+            # a trim is kept only where the timing it was cut from stands on the same variants:
+            # else the trimmed one passing them is luck (OP3 prone_1_098: the untrimmed failed 4
+            # of 19, the trimmed passed 19 and stood in 42 of 50 random variants)
+            (base, stop), untrimmed = untrimmed, None
+            base_replay = replay(base.trajectory)
+            fell = len(base_replay[0].failures())
+            trims[-1]["untrimmed_ensemble_standing"] = len(base_replay[0].verdicts) - fell
+            if fell:
+                log.info("trimmed: %d variants fall with its untrimmed timing; untrimmed", fell)
+                trims[-1]["kept"] = False
+                (result, known), recs = fall_back(base, stop, base_replay), []
+                continue
+            pending = (base, stop, base_replay)
+        replayed, recs = known if known is not None else replay(result.trajectory)
+        known = None
         failures = replayed.failures()
         proof = with_ensemble(result.proof, replayed)
         report = {**result.report, **proof.to_dict()}
@@ -225,21 +255,12 @@ def dynamics_filter(
         reason = "" if not failures else "; ".join(failures[:3]) + f" ({len(failures)} of {len(recs)} model variants fall)"
         result = dataclasses.replace(result, proven=proof.proven, trajectory=final, proof=proof, reason=reason, report=report)
         log.info("ensemble: %d of %d variants stand", proof.ensemble_standing, len(recs))
-        if untrimmed is not None and not failures:
-            # kept only where the timing it was cut from stands on the same variants: else the
-            # trimmed one passing them is luck (OP3 prone_1_098: the untrimmed failed 4 of 19,
-            # the trimmed passed 19 and stood in 42 of 50 random variants)
-            t0 = time.perf_counter()
-            base, _ = ensemble.replay(untrimmed[0].trajectory, start=start, config=config)
-            ensemble_s += time.perf_counter() - t0
-            failures = base.failures()
-            trims[-1]["untrimmed_ensemble_standing"] = len(base.verdicts) - len(failures)
-        if failures and untrimmed is not None:  # the trimmed timing is a fluke of the nominal model: the untrimmed one, as proven
-            log.info("trimmed: %d variants fall with it or its untrimmed timing; untrimmed", len(failures))
+        if failures and pending is not None:  # the trimmed timing is a fluke of the nominal model: the untrimmed one, which stood
+            log.info("trimmed: %d variants fall; untrimmed", len(failures))
             trims[-1]["kept"] = False
-            result, untrimmed, recs = noised(*untrimmed), None, []
+            (result, known), recs, pending = fall_back(*pending), [], None
             continue
-        untrimmed = None
+        pending = None
         if not failures or rounds >= config.ensemble_rounds:
             break
         rounds += 1

@@ -29,7 +29,7 @@ LYING_ROOT_RISE_M = 0.02  # a library frame counts as lying while its root is th
 MAX_ROOT_TURN_RAD = 0.6  # duration ranking: frames whose root is turned further from the start's are out of a plan's reach
 # ... except a prone motion's frames, up to this turn: a body on its side rolls onto its front
 # (limbs fold forward, gravity does the rest), not off its back. OP3, seed 1: side starts whose
-# root is 0.9-1.9 rad from a prone frame were proven joining prone_elbow_knees_quick (5 of 5),
+# root is 0.9-1.9 rad from a prone frame were proven joining prone_elbow_knees_quick (5 of 5, its 2.4 s timing then),
 # 2.3 rad (a side leaning back) not; from the back onto a side: 0 of 6.
 MAX_ROLL_ONTO_FRONT_RAD = 2.0
 # Approaches (first command to the connecting frame, as proven) took 1.8-7.9x (median 3.0x) the
@@ -119,7 +119,7 @@ def connection_candidates(
     # the quickest first; a motion with a timing window of its own (``max_stretch``: it stands
     # only near its own timing, from few random starts) does not hold that place alone: the
     # quickest motion without one follows it (OP3, seed 1: supine starts whose sit-up failed went
-    # to the nearest, the 6.1 s backroll, not the 4.4 s roll)
+    # to the nearest, the 6.1 s backroll, not the roll, 4.4 s then)
     lead = next((n + 1 for n, c in enumerate(quickest) if library.get(c.motion).max_stretch is None), 1)
     # then the two nearest are the runners-up (if the quickest fails, the safest next: with a side
     # free to roll onto its front, the next quickest is often another prone motion that fails
