@@ -447,12 +447,12 @@ def _rise_candidates(
         if not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory, len(commanded.t)):
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
             say(f"filtering {conn.motion} with the cautious approach timing")
-            cautious = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
-                                           planned.trajectory.report)
-            slow = join_with_blend(cautious, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
-                **_join_report(cautious, conn), approach_timing="cautious", blend_s=filter_config.blend_s)
+            cautious_plan = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
+                                                planned.trajectory.report)
+            slow = join_with_blend(cautious_plan, motion.trajectory, conn.frame, blend_s=filter_config.blend_s).with_report(
+                **_join_report(cautious_plan, conn), approach_timing="cautious", blend_s=filter_config.blend_s)
             again = dynamics_filter(robot, slow, scene=scene, config=motion_config, start=start,
-                                    ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious.t))
+                                    ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(cautious_plan.t))
             cautious = "proven" if again.proven else again.reason or "not proven"
             if again.proven:
                 result = again
