@@ -296,26 +296,26 @@ def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
     plain = rise(robot, posture, seed=1, candidates=1, retries=0)
     untrimmed_s = plain.trajectory.report["trim"][0]["untrimmed_duration_s"]
 
-    class UntrimmedFalls(EnsembleReplayer):
-        replayed: list[float] = []
+    replayed: list[float] = []  # the duration of every trajectory the ensemble replayed
 
+    class UntrimmedFalls(EnsembleReplayer):
         def replay(self, trajectory, **kwargs):
             result, recs = super().replay(trajectory, **kwargs)
-            self.replayed.append(trajectory.duration_s)
+            replayed.append(trajectory.duration_s)
             if abs(trajectory.duration_s - untrimmed_s) < 1e-9:
                 fell = dataclasses.replace(result.verdicts[0], standing=False, reason="said to fall by the test")
                 result = EnsembleResult((fell, *result.verdicts[1:]))
             return result, recs
 
+    ensemble = UntrimmedFalls(robot, "flat")
+
     class Context(RiseContext):
         def ensemble(self):
-            if self._ensemble is None:
-                self._ensemble = UntrimmedFalls(self.robot, self.scene)
-            return self._ensemble
+            return ensemble
 
     result = rise(robot, posture, seed=1, candidates=1, retries=0, context=Context.build(robot, "flat"))
     report = result.trajectory.report
     first = report["trim"][0]
     assert first["kept"] is False and first["untrimmed_ensemble_standing"] == report["ensemble"]["size"] - 1, report["trim"]
-    assert sum(abs(d - untrimmed_s) < 1e-9 for d in UntrimmedFalls.replayed) == 1  # its replay reused, not repeated
+    assert sum(abs(d - untrimmed_s) < 1e-9 for d in replayed) == 1  # its replay reused, not repeated
     assert result.proven and result.trajectory.duration_s > untrimmed_s > plain.trajectory.duration_s
