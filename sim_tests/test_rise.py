@@ -284,20 +284,6 @@ def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautio
     assert side.attempts[0].planned and not side.attempts[0].proven and side.attempts[0].cautious == "", side.attempts[0].describe()
 
 
-def test_a_momentum_motion_joined_mid_swing_is_tried_again_from_its_own_start(robot):
-    """OP3, seed 1, supine posture 19 of the 300-posture protocol: the sit-up (a timing window of
-    its own, ``max_stretch``) is the quickest; joined at its nearest frame, mid-swing, it exceeds
-    the envelope; joined at its first frame, where its proof started, it stands (3.3 s; the roll
-    it fell back on before took 4.8 s)."""
-    result = rise(robot, sample_lying(robot, "supine", 19, seed=1).postures[18], seed=1)
-    assert result.proven, result.reason
-    first, second = result.attempts[:2]
-    assert first.motion == second.motion and first.frame > 0 and second.frame == 0, [a.describe() for a in result.attempts]
-    assert not first.proven and second.proven and result.trajectory.report["motion"] == second.motion
-    assert load_library(robot_name=robot.library).get(second.motion).max_stretch is not None
-    assert result.trajectory.duration_s < 4.0
-
-
 def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
     """A trimmed timing passing the ensemble is kept only where the timing it was cut from stands
     on the same variants: a second timing against the same fixed variants is a second chance to
