@@ -394,8 +394,6 @@ def _rise_candidates(
     for conn in connection_candidates(library, robot, key or start, candidates, index=context.index, tree=context.tree, rank=candidate_rank):
         if composed and conn.frame != 0:  # a composed proof starts where the motion's own proof started
             conn = dataclasses.replace(conn, frame=0, time_s=0.0)
-        if any((a.motion, a.frame) == (conn.motion, conn.frame) for a in attempts):  # composed: a momentum motion's retry from its start
-            continue
         if composed and not _composable(context, library.get(conn.motion), filter_config):  # nothing to plan for: the whole pass may try it
             attempts.append(RiseAttempt(conn.motion, conn.frame, conn.distance, False, skipped=NOT_COMPOSABLE))
             continue

@@ -84,9 +84,7 @@ def connection_candidates(
     servos' speed plus the rest of the motion; issue 17: join the library where it pays), the
     two nearest motions kept as the runners-up. When the quickest is a motion with a timing window
     of its own (``Motion.max_stretch``), the quickest motion without one is tried next, before the
-    nearest, and up to ``k`` + 1 candidates are returned (the ``k`` - 1 runners-up stay). A
-    motion with a timing window joined later than its first frame is tried from its first frame
-    too, right after (one more candidate).
+    nearest, and up to ``k`` + 1 candidates are returned (the ``k`` - 1 runners-up stay).
     """
     index = index or FrameIndex.build(library, robot)
     joints = start.joint_vector(robot.joint_names)
@@ -130,20 +128,7 @@ def connection_candidates(
     for c in quickest[:lead] + by_distance[:2] + quickest[lead:] + by_distance[2:]:
         if all((c.motion, c.frame) != (o.motion, o.frame) for o in out) and all(c.motion != o.motion for o in out):
             out.append(c)
-    out = out[:k + min(lead, 2) - 1]  # the one that follows a timing window's motion comes on top
-    # a momentum motion stands only near its own timing from near its own start: joined mid-swing
-    # from a plan that arrives at rest it lacks the swing it was proven with, so where it is joined
-    # later than its first frame, it is tried from there too, right after. OP3, the first 30 supine
-    # postures of seed 1: the sit-up stood from one more (4.78 -> 3.31 s); joined only at its start
-    # (and ranked by it) it stood from one fewer.
-    for n, c in enumerate(out):
-        if library.get(c.motion).max_stretch is not None:
-            rows = np.flatnonzero(index.motion_id == index.motion_names.index(c.motion))
-            first = int(rows[np.argmin(index.frame[rows])])
-            if int(index.frame[first]) != c.frame:
-                out.insert(n + 1, index._connection(first, float(d[first]), int(rows.size)))
-            break
-    return out
+    return out[:k + min(lead, 2) - 1]  # the one that follows a timing window's motion comes on top
 
 
 def expected_getup_s(index: FrameIndex, library: MotionLibrary, robot: Robot, start: Posture) -> tuple[np.ndarray, np.ndarray]:
