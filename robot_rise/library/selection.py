@@ -36,8 +36,9 @@ MAX_ROLL_ONTO_FRONT_RAD = 2.0
 # straight-line trapezoid (16 rises, 4 per lying kind, seed 1): the path bends around the body,
 # a roll waits for gravity and the filter slows what the servos cannot follow. Timed by path
 # length (2026-12-03) they take 1.3-4.5x, median 2.2x (the same 16 but one rise after a fall);
-# with 2.2 the 300-posture protocol (2026-12-04) moved two postures to the other roll and the
-# median by 5 ms (BENCHMARKS.md), so the ranking keeps 3.0.
+# with 2.2 the 300-posture protocol (2026-12-04) changed only two postures, each to the other
+# roll (one 1.18 s sooner, one 0.12 s later), and the median by 6 ms (BENCHMARKS.md, issue 17),
+# so the ranking keeps 3.0.
 APPROACH_TIME_FACTOR = 3.0
 
 
