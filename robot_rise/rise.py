@@ -38,6 +38,7 @@ from robot_rise.filter import (
     dynamics_filter,
     gravity_angle_rad,
     join_with_blend,
+    join_with_overlap,
     load_start_proof,
     noise_check,
     predicted_positions,
@@ -434,17 +435,10 @@ def _rise_candidates(
                 tr = quick.trajectory.with_report(attempts=[a.describe() for a in attempts], seconds=attempts[-1].seconds, robustness={})
                 return RiseResult(True, tr, tuple(attempts), "", quick)
             continue
-        # the short step first (0.2 s sooner); the settling pause where the body needs it (a slope)
-        blends = [b for b in (filter_config.quick_blend_s, filter_config.blend_s) if b is not None]
-        for blend_s in dict.fromkeys(blends):  # in this order, once each
-            commanded = join_with_blend(planned.trajectory, motion.trajectory, conn.frame, blend_s=blend_s)
-            commanded = commanded.with_report(**_join_report(planned.trajectory, conn), blend_s=blend_s)
-            result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
-                                     ensemble=context.ensemble() if filter_config.ensemble else None, join_row=len(planned.trajectory.t))
-            if result.proven:
-                break
+        result, commanded, join_row = _join_and_filter(robot, planned.trajectory, motion, conn, start, scene, filter_config, motion_config,
+                                                       context)
         cautious = ""
-        if not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory, len(commanded.t)):
+        if not result.proven and planned.smoothed is not None and _approach_off_plan(result, planned.trajectory, len(commanded.t), join_row):
             # the servos' fastest approach threw the body where the plan did not go: the same path, cautiously timed
             say(f"filtering {conn.motion} with the cautious approach timing")
             cautious_plan = timed_to_trajectory(time_parameterize(planned.smoothed, robot, limits=TimingLimits.cautious(robot)), start, robot.name,
@@ -482,7 +476,7 @@ def _rise_candidates(
         if best_unproven is None:
             best_unproven = result
         if _short_of_torque(result, motion_config):
-            short_of_torque.append((result.proof.peak_torque_ratio, conn, commanded, motion_config, len(planned.trajectory.t)))
+            short_of_torque.append((result.proof.peak_torque_ratio, conn, commanded, motion_config, join_row))
     if best_proven is None and short_of_torque:
         # every candidate failed; the one nearest the torque bound, still coming down, gets more iterations
         peak, conn, commanded, motion_config, join_row = min(short_of_torque, key=lambda c: c[0])
@@ -513,6 +507,51 @@ def _rise_candidates(
             return RiseResult(True, recovered.trajectory, tuple(attempts) + recovered.attempts, "", recovered.filter_result)
     tr = best_unproven.trajectory.with_report(attempts=[a.describe() for a in attempts]) if best_unproven else None
     return RiseResult(False, tr, tuple(attempts), reason, best_unproven)
+
+
+def _join_and_filter(robot: Robot, plan: Trajectory, motion: Motion, conn: Connection, start: Posture, scene: str | os.PathLike[str] | None,
+                     filter_config: FilterConfig, motion_config: FilterConfig, context: RiseContext) -> tuple[FilterResult, Trajectory, int]:
+    """The candidate's approach joined to its motion and filtered: overlapped first (no stop at
+    the join), then with the short step, then with the settling pause; the first proven, except
+    that an overlap slowed past the short step's best (the plan, the step, the rest of the motion)
+    has the step tried too (its nominal filter first) and the quicker kept. Returns the filter's
+    result (its report's ``joins`` says what each join tried gave), the commanded trajectory it
+    filtered and its join row (the last tried when none is proven)."""
+    rest = float(motion.trajectory.t[-1] - motion.trajectory.t[conn.frame])
+    joins: list[tuple[str, float]] = []
+    if filter_config.join_overlap_s is not None:
+        joins.append(("overlap", filter_config.join_overlap_s))
+    # the short step (0.2 s sooner than the pause); the settling pause where the body needs it (a slope)
+    joins += [("step", b) for b in dict.fromkeys(b for b in (filter_config.quick_blend_s, filter_config.blend_s) if b is not None)]
+    best: tuple[FilterResult, Trajectory, int] | None = None
+    tried: tuple[FilterResult, Trajectory, int] | None = None
+    seen: list[dict[str, Any]] = []  # each join tried: the report's ``joins``
+    for how, seconds in joins:
+        if best is not None and (seconds == filter_config.blend_s or best[0].trajectory.duration_s <= plan.duration_s + seconds + rest):
+            break  # never the settling pause once a join is proven; the step only where it could be the quicker
+        if how == "overlap":
+            commanded, join_row = join_with_overlap(plan, motion.trajectory, conn.frame, overlap_s=seconds)
+            overlap = float(plan.t[-1] - commanded.t[join_row]) if join_row < len(commanded.t) else 0.0
+            commanded = commanded.with_report(**_join_report(plan, conn), join_overlap_s=overlap)
+        else:
+            commanded, join_row = join_with_blend(plan, motion.trajectory, conn.frame, blend_s=seconds), len(plan.t)
+            commanded = commanded.with_report(**_join_report(plan, conn), blend_s=seconds)
+        if best is not None and filter_config.ensemble:
+            # the nominal filter first (a third of the cost): the ensemble and the noise only slow
+            # a motion further, so a join the nominal model already makes no quicker cannot win
+            nominal = dynamics_filter(robot, commanded, scene=scene, config=dataclasses.replace(motion_config, ensemble=False, noise_replays=0),
+                                      start=start, join_row=join_row)
+            seen.append({"join": how, "s": seconds, "nominal_only": True, "proven": nominal.proven, "duration_s": nominal.trajectory.duration_s})
+            if not nominal.proven or nominal.trajectory.duration_s >= best[0].trajectory.duration_s:
+                break
+        result = dynamics_filter(robot, commanded, scene=scene, config=motion_config, start=start,
+                                 ensemble=context.ensemble() if filter_config.ensemble else None, join_row=join_row)
+        seen.append({"join": how, "s": seconds, "nominal_only": False, "proven": result.proven, "duration_s": result.trajectory.duration_s})
+        tried = (result, commanded, join_row)
+        if result.proven and (best is None or result.trajectory.duration_s < best[0].trajectory.duration_s):
+            best = tried
+    result, commanded, join_row = best or tried  # type: ignore[misc]
+    return dataclasses.replace(result, trajectory=result.trajectory.with_report(joins=seen)), commanded, join_row
 
 
 def _robustness(robot: Robot, trajectory: Trajectory, variants: tuple[ModelVariant, ...], *, scene: str | os.PathLike[str] | None,
@@ -600,15 +639,15 @@ def _composable(context: RiseContext, motion: Motion, config: FilterConfig) -> b
     return start_proof is not None and start_proof.composable
 
 
-def _approach_off_plan(result: FilterResult, plan: Trajectory, commanded_rows: int) -> bool:
+def _approach_off_plan(result: FilterResult, plan: Trajectory, commanded_rows: int, join_row: int) -> bool:
     """The simulated body ended the planned approach lying otherwise than planned: its gravity
     direction (in the root frame) more than APPROACH_OFF_PLAN_RAD from the planned root's.
 
     The planned root comes from ``plan`` (the filter's output carries no root): the filter only
-    retimes the ``commanded_rows`` it was given, so row ``len(plan.t) - 1`` still ends the
-    approach; where the rows differ, nothing is said."""
+    retimes the ``commanded_rows`` it was given, so row ``join_row - 1`` (the plan's rows come
+    first) still ends the approach; where the rows differ, nothing is said."""
     tr, rec = result.trajectory, result.recording
-    end = len(plan.t) - 1
+    end = min(join_row, len(plan.t)) - 1
     if plan.root is None or len(tr.t) != commanded_rows or not 0 <= end < len(tr.t) or len(rec.t) == 0:
         return False
     k = min(int(np.searchsorted(rec.t, tr.t[end])), len(rec.t) - 1)

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, prove, time_scale
+from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, join_with_overlap, prove, time_scale
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -40,6 +40,29 @@ def test_join_turns_a_mismatch_into_a_blend_within_the_speed_bound(robot):
     gap = joined.t[k] - joined.t[k - 1]
     assert gap == pytest.approx(max(0.2, np.max(np.abs(tr.q[-1] - shifted.q[1])) / 2.0))
     assert np.all(np.diff(joined.t) > 0)
+
+
+def test_an_overlapped_join_starts_the_motion_before_the_plan_ends_and_cross_fades_into_it(robot):
+    plan = _squat_trajectory(robot, 3.0)  # rows at 0, 1, 2, 3 s; ends at rest on the stand
+    t = np.linspace(0.0, 2.0, 21)
+    q = np.array([plan.q[-1] + 0.3 * s for s in t / 2.0])  # the motion leaves the stand at 0.15 rad/s per joint
+    motion = Trajectory(robot.name, robot.joint_names, t, q, plan.start)
+    joined, row = join_with_overlap(plan, motion, 0, overlap_s=0.5)
+    assert row == 3 and np.allclose(joined.q[:3], plan.q[:3])  # the plan's rows before 2.5 s
+    assert joined.t[row] == pytest.approx(2.5)  # the motion's first row, 0.5 s before the plan ends
+    assert joined.duration_s == pytest.approx(2.5 + 2.0)
+    assert np.all(np.diff(joined.t) > 0)
+    halfway = plan.q[-2] + 0.5 * (plan.q[-1] - plan.q[-2])
+    assert np.allclose(joined.q[row], halfway)  # where the plan's targets are then: the cross-fade starts from them
+    after = joined.t >= 3.0 - 1e-9  # past the overlap: the motion's own rows
+    assert np.allclose(joined.q[after], motion.q[5:])
+    inside = (joined.t > 2.5) & (joined.t < 3.0)
+    ends = np.stack([halfway, plan.q[-1], motion.q[5]])
+    lo, hi = ends.min(axis=0), ends.max(axis=0)
+    assert np.all((joined.q[inside] >= lo - 1e-9) & (joined.q[inside] <= hi + 1e-9))  # a blend of the two, no overshoot
+    # an overlap of more than half the plan is cut to half: the approach keeps its first half
+    _, row = join_with_overlap(plan, motion, 0, overlap_s=10.0)
+    assert row == 2
 
 
 def test_a_slow_squat_is_proven_and_reports_its_numbers(robot):

@@ -33,8 +33,13 @@ def test_rise_from_a_random_lying_posture_is_proven_and_starts_where_the_robot_l
     assert np.allclose(tr.q[0], posture.joint_vector(tr.joint_names), atol=1e-6)
     assert tr.report["proven"] is True and tr.report["robot"] == robot.name
     assert tr.report["peak_torque_ratio"] <= 0.9
-    # on flat ground the short step from the approach into the motion proves (0.2 s sooner than the pause)
-    assert tr.report["blend_s"] == FilterConfig().quick_blend_s < FilterConfig().blend_s
+    # on flat ground the motion starts before the approach ends, or after the short step (0.2 s
+    # sooner than the pause), never after the settling pause
+    if "join_overlap_s" in tr.report:
+        assert 0 < tr.report["join_overlap_s"] <= min(FilterConfig().join_overlap_s, tr.report["plan_duration_s"] / 2) + 1e-9
+        assert "blend_s" not in tr.report
+    else:
+        assert tr.report["blend_s"] == FilterConfig().quick_blend_s < FilterConfig().blend_s
     _, verdict, again = prove(robot, tr)
     assert again.proven and verdict.standing
 
@@ -278,10 +283,33 @@ def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautio
     assert first.planned and first.cautious, first.describe()
     assert f"cautiously timed: {first.cautious}" in first.describe()
     assert first.proven == (first.cautious == "proven")
-    # an unproven attempt whose approach ended where it was planned is not retried (left side 3:
-    # the roll over the right side saturates a hip roll however slowly it goes)
-    side = rise(robot, sample_lying(robot, "left", 5, seed=1).postures[2], seed=1, candidates=1, retries=0)
+    # an unproven attempt whose approach ended where it was planned is not retried (left side 3,
+    # joined with a step or a pause: the roll over the right side saturates a hip roll however
+    # slowly it goes; the overlapped join proves it)
+    left_3 = sample_lying(robot, "left", 5, seed=1).postures[2]
+    side = rise(robot, left_3, seed=1, candidates=1, retries=0, filter_config=FilterConfig(join_overlap_s=None))
     assert side.attempts[0].planned and not side.attempts[0].proven and side.attempts[0].cautious == "", side.attempts[0].describe()
+
+
+def test_an_overlapped_join_slowed_past_the_steps_best_has_the_step_tried_and_the_quicker_kept(robot):
+    """OP3, seed 1, right-side posture 7 of the 300-posture protocol: the overlapped join to
+    prone_elbow_knees_quick is proven but slowed past what the 0.1 s step could at best give, so
+    the step is filtered too (its nominal filter first, then proven whole) and stands sooner: it
+    is kept. The report's ``joins`` says what each join gave."""
+    posture = sample_lying(robot, "right", 7, seed=1).postures[6]
+    result = rise(robot, posture, seed=1, candidates=1, retries=0)
+    assert result.proven, result.reason
+    report = result.trajectory.report
+    overlap, screen, step = report["joins"]
+    assert overlap["join"] == "overlap" and overlap["proven"] and not overlap["nominal_only"]
+    motion = load_library(robot_name=robot.library).get(report["motion"]).trajectory
+    rest = motion.t[-1] - motion.t[report["connecting_frame"]]
+    assert overlap["duration_s"] > report["plan_duration_s"] + FilterConfig().quick_blend_s + rest  # the step's best is sooner
+    assert screen["join"] == step["join"] == "step" and screen["nominal_only"] and not step["nominal_only"]
+    assert screen["duration_s"] < overlap["duration_s"] and step["proven"]
+    assert step["duration_s"] < overlap["duration_s"]
+    assert report["blend_s"] == FilterConfig().quick_blend_s and "join_overlap_s" not in report
+    assert result.trajectory.duration_s == pytest.approx(step["duration_s"])
 
 
 def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
@@ -293,7 +321,8 @@ def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
     posture 3 (the trimmed test's rise): the trim is not kept, the untrimmed timing is replayed
     once and goes on to the ensemble's slowing round, slower than it, proven."""
     posture = sample_lying(robot, "prone", 3, seed=1).postures[2]
-    plain = rise(robot, posture, seed=1, candidates=1, retries=0)
+    one_join = FilterConfig(join_overlap_s=None)  # one filtered join: an overlap proven slowed has the step tried too
+    plain = rise(robot, posture, seed=1, candidates=1, retries=0, filter_config=one_join)
     untrimmed_s = plain.trajectory.report["trim"][0]["untrimmed_duration_s"]
 
     replayed: list[float] = []  # the duration of every trajectory the ensemble replayed
@@ -313,7 +342,7 @@ def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
         def ensemble(self):
             return ensemble
 
-    result = rise(robot, posture, seed=1, candidates=1, retries=0, context=Context.build(robot, "flat"))
+    result = rise(robot, posture, seed=1, candidates=1, retries=0, context=Context.build(robot, "flat"), filter_config=one_join)
     report = result.trajectory.report
     first = report["trim"][0]
     assert first["kept"] is False and first["untrimmed_ensemble_standing"] == report["ensemble"]["size"] - 1, report["trim"]

@@ -168,7 +168,8 @@ def _robot_time(library, report, duration_s: float) -> dict[str, float] | None:
     if "recovery" in report or "motion" not in report or "connecting_frame" not in report:
         return None
     tr = library.get(str(report["motion"])).trajectory
-    approach = float(report.get("plan_duration_s", 0.0))
+    # an overlapped join starts the motion before the approach ends: the approach is the time before it
+    approach = float(report.get("plan_duration_s", 0.0)) - float(report.get("join_overlap_s", 0.0))
     rest = float(tr.duration_s - tr.t[int(report["connecting_frame"])])
     return {"approach": approach, "library": rest, "blend_and_slowing": max(0.0, duration_s - approach - rest)}
 

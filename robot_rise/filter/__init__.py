@@ -5,7 +5,7 @@ database motion at the most similar frame with blending; here the servo model is
 controller and the filter reshapes the targets, never the physics. One concept per module:
 
 - ``config``: ``FilterConfig``, the filter's tuning.
-- ``join``: the plan joined to the library motion with a blend; windows of time stretched.
+- ``join``: the plan joined to the library motion with a blend or an overlap; windows of time stretched.
 - ``violations``: torque, balance and divergence windows of a replay.
 - ``timeline``: the segment (plan, blend, motion, hold) a time falls in; stretches on the feet.
 - ``fall``: why a replay did not end standing.
@@ -52,7 +52,7 @@ from robot_rise.filter.composed import (
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.stop import STOP_BEFORE_S, STOP_RAMP_S, stopped_before_torque_bound
-from robot_rise.filter.join import join_with_blend, time_scale
+from robot_rise.filter.join import join_with_blend, join_with_overlap, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
 from robot_rise.filter.start_cache import (
@@ -104,6 +104,7 @@ __all__ = [
     "FilterIteration",
     "FilterResult",
     "join_with_blend",
+    "join_with_overlap",
     "time_scale",
     "find_violations",
     "dynamics_filter",

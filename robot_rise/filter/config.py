@@ -44,8 +44,16 @@ class FilterConfig:
             makes every flat-ground rise 0.2 s sooner (issue 17, BENCHMARKS.md) but a prone start
             on the 10 deg slope then falls (sim_tests/test_environments.py): the pause lets the
             body settle before the motion, so it stays 0.3 s where ``quick_blend_s`` does not prove.
-        quick_blend_s: ``rise`` first joins each candidate's plan to its motion with this shorter
-            step and, where that is not proven, with ``blend_s`` (None: ``blend_s`` only).
+        quick_blend_s: ``rise`` joins each candidate's plan to its motion with this shorter
+            step where the overlap below is not proven or not the quicker, and where neither is
+            proven with ``blend_s`` (None: ``blend_s`` only).
+        join_overlap_s: ``rise`` first starts each candidate's motion this long before its
+            approach ends, the two cross-faded (``join_with_overlap``; at most half the approach):
+            no stop and no pause at the join. Where that is proven but slowed past what the
+            ``quick_blend_s`` step could at best give, the step is tried too and the quicker
+            proven one kept (OP3, 120 postures around the median of the 300-posture protocol:
+            either alone stood sooner on about a third each; BENCHMARKS.md issue 17). None: no
+            overlap.
         max_iterations: filter iterations before giving up.
         hold_s: time the final targets are held while the judge watches [s].
         max_duration_s: never stretch the motion beyond this [s].
@@ -95,6 +103,7 @@ class FilterConfig:
     window_pad_s: float = 0.15
     blend_s: float = 0.3
     quick_blend_s: float | None = 0.1
+    join_overlap_s: float | None = 0.2
     max_iterations: int = 6
     hold_s: float = 3.0
     max_duration_s: float = 30.0

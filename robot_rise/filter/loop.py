@@ -5,9 +5,9 @@ database motion at the most similar frame with blending. A robot has no root act
 strength is its servos', so here the "tracking controller" is the servo model itself (the
 targets ARE what the servos receive) and the filter reshapes the targets, never the physics:
 
-1. join the planned path to the library motion from the connecting frame on, the step between
-   them taking at least the caller's blend (``rise``: ``quick_blend_s``, then ``blend_s``; 000
-   section 4.3);
+1. join the planned path to the library motion from the connecting frame on (the caller's:
+   ``rise`` cross-fades the motion's start into the approach's end, ``join_overlap_s``, then
+   steps after ``quick_blend_s``, then pauses ``blend_s``; 000 section 4.3);
 2. play it through the servo model (robot_rise.sim.player) from the start posture;
 3. find violations: torque beyond (1 - margin - headroom) of the torque-speed envelope (the
    headroom keeps ``check``'s verdict, at 1 - margin, under fresh target noise; dissertation 003
