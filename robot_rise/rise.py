@@ -39,6 +39,7 @@ from robot_rise.filter import (
     gravity_angle_rad,
     join_with_blend,
     join_with_overlap,
+    overlap_of,
     load_start_proof,
     noise_check,
     predicted_positions,
@@ -530,9 +531,12 @@ def _join_and_filter(robot: Robot, plan: Trajectory, motion: Motion, conn: Conne
         if best is not None and (seconds == filter_config.blend_s or best[0].trajectory.duration_s <= plan.duration_s + seconds + rest):
             break  # never the settling pause once a join is proven; the step only where it could be the quicker
         if how == "overlap":
+            seconds = overlap_of(plan, motion.trajectory, conn.frame, seconds)
+            if seconds <= 0.0:
+                continue  # nothing to overlap: a plan of one row, the motion's last frame
             commanded, join_row = join_with_overlap(plan, motion.trajectory, conn.frame, overlap_s=seconds)
-            overlap = float(plan.t[-1] - commanded.t[join_row]) if join_row < len(commanded.t) else 0.0
-            commanded = commanded.with_report(**_join_report(plan, conn), join_overlap_s=overlap)
+            # the plan's rows are those before the motion's first (the lean and the timeline read them)
+            commanded = commanded.with_report(**{**_join_report(plan, conn), "plan_rows": join_row}, join_overlap_s=seconds)
         else:
             commanded, join_row = join_with_blend(plan, motion.trajectory, conn.frame, blend_s=seconds), len(plan.t)
             commanded = commanded.with_report(**_join_report(plan, conn), blend_s=seconds)

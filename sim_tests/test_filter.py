@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, join_with_overlap, prove, time_scale
+from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, join_with_overlap, overlap_of, prove, time_scale
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -62,7 +62,16 @@ def test_an_overlapped_join_starts_the_motion_before_the_plan_ends_and_cross_fad
     assert np.all((joined.q[inside] >= lo - 1e-9) & (joined.q[inside] <= hi + 1e-9))  # a blend of the two, no overshoot
     # an overlap of more than half the plan is cut to half: the approach keeps its first half
     _, row = join_with_overlap(plan, motion, 0, overlap_s=10.0)
-    assert row == 2
+    assert row == 2 and overlap_of(plan, motion, 0, 10.0) == pytest.approx(1.5)
+    # and to the motion's rest: the fade ends within the motion, on its last targets
+    late, row = join_with_overlap(plan, motion, 18, overlap_s=0.5)
+    assert overlap_of(plan, motion, 18, 0.5) == pytest.approx(0.2) and late.t[row] == pytest.approx(2.8)
+    assert np.allclose(late.q[-1], motion.q[-1]) and late.duration_s == pytest.approx(3.0)
+    # nothing to overlap: the motion's last frame, a plan of one row
+    one_row = Trajectory(robot.name, robot.joint_names, [0.0], plan.q[-1:], plan.start)
+    assert overlap_of(plan, motion, 20, 0.5) == 0.0 and overlap_of(one_row, motion, 0, 0.5) == 0.0
+    with pytest.raises(ValueError, match="nothing to overlap"):
+        join_with_overlap(plan, motion, 20, overlap_s=0.5)
 
 
 def test_a_slow_squat_is_proven_and_reports_its_numbers(robot):

@@ -52,7 +52,7 @@ from robot_rise.filter.composed import (
 from robot_rise.filter.config import FilterConfig
 from robot_rise.filter.fall import describe_fall
 from robot_rise.filter.stop import STOP_BEFORE_S, STOP_RAMP_S, stopped_before_torque_bound
-from robot_rise.filter.join import join_with_blend, join_with_overlap, time_scale
+from robot_rise.filter.join import join_with_blend, join_with_overlap, overlap_of, time_scale
 from robot_rise.filter.lean import lean_offsets, shoulder_pitch_joints, torso_pitch_rad
 from robot_rise.filter.loop import FilterIteration, FilterResult, dynamics_filter
 from robot_rise.filter.start_cache import (
@@ -105,6 +105,7 @@ __all__ = [
     "FilterResult",
     "join_with_blend",
     "join_with_overlap",
+    "overlap_of",
     "time_scale",
     "find_violations",
     "dynamics_filter",

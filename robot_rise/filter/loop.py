@@ -138,7 +138,7 @@ def dynamics_filter(
         config: filter tuning (``config.ensemble`` switches the ensemble proof).
         start: the posture the robot really lies in (default: commanded.start).
         protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
-        join_row: the first row of the library motion (``join_with_blend``); with
+        join_row: the first row of the library motion (``join_with_blend``, ``join_with_overlap``); with
             ``config.max_stretch`` the motion from there on is slowed to at most that multiple of
             its commanded duration (the approach before it as far as ``max_duration_s``).
         progress: called as progress(iteration, max_iterations).

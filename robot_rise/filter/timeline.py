@@ -1,7 +1,8 @@
 """When things happen in a rise: the segment a time falls in, and the stretches on the feet alone.
 
 A rise trajectory is a planned path, a blend, then the library motion (``report["plan_rows"]``
-rows of plan; ``motion`` and ``connecting_frame`` name the rest), then the judge's final hold.
+rows of plan, the plan's rows before an overlapped join's motion; ``motion`` and
+``connecting_frame`` name the rest), then the judge's final hold.
 "On its feet" is the judge's condition: only the feet touch the world.
 """
 
