@@ -51,8 +51,8 @@ class FilterConfig:
             approach ends, the two cross-faded (``join_with_overlap``; at most half the approach):
             no stop and no pause at the join. Where that is proven but slowed past what the
             ``quick_blend_s`` step could at best give, the step is tried too and the quicker
-            proven one kept (OP3: either alone stood later than the other on about a third of
-            120 postures around the median of the 300-posture protocol; the better of the two
+            proven one kept (OP3, 120 postures around the median of the 300-posture protocol:
+            the overlap stood sooner than the step on 79, later on 35; the better of the two
             took the protocol's median from 4.18 to 3.99 s; BENCHMARKS.md issue 17). None: no
             overlap.
         max_iterations: filter iterations before giving up.
