@@ -90,11 +90,10 @@ class Statics:
         self.foot_geoms = np.array([g for g in range(self.m.ngeom) if self._in_feet(int(self.m.geom_bodyid[g]))], dtype=int)
         self.other_geoms = np.array([g for g in range(self.m.ngeom) if g not in set(self.foot_geoms.tolist()) and self.m.geom_bodyid[g] != 0], dtype=int)
         self.root = root
-        # the soles' orientation in the root frame at the zero pose: "flat" is that orientation
-        self.d.qpos[self.idx.qpos_root] = [0, 0, 0, 1, 0, 0, 0]
-        self.d.qpos[self.idx.qpos_joints] = 0.0
-        mujoco.mj_kinematics(self.m, self.d)
-        self.sole_zero = self.d.site_xmat[self.soles[0]].reshape(3, 3).copy()
+        # "flat" is the sole site's frame aligned with the root's: a sole site is the stand frame
+        # where its sole lies flat (robot import places it so at the neutral pose; for robots whose
+        # soles are flat at the zero pose, as the OP3's, that is the zero pose's orientation)
+        self.sole_zero = np.eye(3)
 
     def _in_feet(self, body: int) -> bool:
         while body > 0:

@@ -37,11 +37,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Import a robot as its team published it: strips actuators and sensors (robot_rise adds its own servo\n"
         "model), keeps collision filters, copies meshes, infers legs, arms, head, joint roles and signs, adds sole and\n"
         "torso sites, finds a standing posture (the 'stand' keyframe, else searched and held by the servo model) and\n"
-        "writes robot.toml (every inference, to correct by editing it) and servos.toml.",
+        "writes robot.toml (every inference, to correct by editing it) and servos.toml. ROS packages (package://,\n"
+        "$(find)), file names whose case differs from the disk, CAD inertias and meshes MuJoCo refuses, fixed links\n"
+        "between the base and the limbs, and root frames that are not x forward, z up are handled; each fix is printed.",
         epilog="examples:\n  robot-rise robot import wolfgang.xml --out robots/wolfgang --servo-model MX-106 --servo-model KNEE_JOINT=XH540-W270\n"
-        "  robot-rise robot import bez1.urdf --out robots/bez1 --servos my_servos.toml",
+        "  robot-rise robot import my_description/urdf/robot.urdf --out robots/mine --servos my_servos.toml\n"
+        "  robot-rise robot import robot.urdf.xacro --package-path ~/ws/src --servos my_servos.toml --out robots/mine --dry-run",
     )
-    im.add_argument("model", metavar="MODEL", help="MJCF (.xml), URDF (.urdf) or .xacro (needs the xacrodoc package)")
+    im.add_argument("model", metavar="MODEL", help="MJCF (.xml), URDF (.urdf, any case) or xacro (.xacro, .urdf.xacro)")
     im.add_argument("--out", required=True, metavar="DIR", help="robot directory to write (must not exist, unless --force)")
     src = im.add_mutually_exclusive_group(required=True)
     src.add_argument("--servos", metavar="SERVOS.toml", help="your servo map (IDs, models, directions, offsets, limits)")
@@ -50,7 +53,43 @@ def register(sub: argparse._SubParsersAction) -> None:
     im.add_argument("--supply-voltage", type=float, metavar="V",
                     help="the servos' supply in volts, e.g. 14.8 for a 4S LiPo (default: the servo map's, else 12.0)")
     im.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    im.add_argument("--package-path", action="append", default=[], metavar="DIR",
+                    help="a directory holding ROS packages (or a package) for package://NAME and $(find NAME); repeat for more;\n"
+                    "searched after the model file's own ancestors and before ROS_PACKAGE_PATH")
+    im.add_argument("--stand", metavar="POSTURE.json",
+                    help="the robot standing (format robot-rise/posture@1): tried before the model's 'stand' keyframe and the search")
+    im.add_argument("--dry-run", action="store_true", help="print every inference and fix, write nothing")
     im.set_defaults(func=run_import)
+
+
+def register_bench(bsub: argparse._SubParsersAction) -> None:
+    b = bsub.add_parser(
+        "import", help="import every robot file of ../shared/robots and a synthetic file per import feature",
+        formatter_class=Formatter,
+        description="Per file: imported or the one-line reason, the body's mass against the file's, collision geoms kept,\n"
+        "roles found, the standing posture, seconds (one process).",
+        epilog="example:\n  robot-rise bench import --robots ../shared/robots",
+    )  # fmt: skip
+    b.add_argument("--robots", metavar="DIR", default="../shared/robots", help="the published robot files (default: ../shared/robots)")
+    b.add_argument("--no-synthetic", action="store_true", help="only the published files")
+    b.add_argument("--json", action="store_true", help="print JSON")
+    b.set_defaults(func=run_bench_import)
+
+
+def run_bench_import(args: argparse.Namespace) -> int:
+    import dataclasses
+    import sys
+    from pathlib import Path
+
+    from robot_rise.bench.import_robots import bench_import, format_import_table
+    from robot_rise.cli._common import print_json
+
+    rows = bench_import(Path(args.robots), synthetic=not args.no_synthetic, progress=lambda line: print(line, file=sys.stderr, flush=True))
+    if args.json:
+        print_json([dataclasses.asdict(r) for r in rows])
+    else:
+        print(format_import_table(rows))
+    return 0 if all(r.imported for r in rows) else 1
 
 
 def run_show(args: argparse.Namespace) -> int:
@@ -79,8 +118,12 @@ def run_import(args: argparse.Namespace) -> int:
             raise ConfigError(f"--servo-model {item!r}: expected MODEL or JOINT=MODEL")
         models[joint if sep else "*"] = model if sep else joint
     result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name,
-                           supply_voltage_v=args.supply_voltage, force=args.force)
+                           supply_voltage_v=args.supply_voltage, force=args.force, package_paths=args.package_path,
+                           stand=args.stand, dry_run=args.dry_run)
     for note in result.notes:
         print(f"  {note}")
+    if not result.written:
+        print(f"dry run: robot {result.name} would import into {result.directory} (nothing written)")
+        return 0
     print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library --robot {result.directory} build)")
     return 0

@@ -1,0 +1,183 @@
+"""Issue 38: the robot files people really have import (ROS packages, xacro, CAD quirks, fixed
+links, scene MJCF, other axes, limits), each on a synthetic file built for it and, where
+../shared/robots has one, on the real file."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from robot_rise.bench.import_cases import CASES, SERVO, humanoid_urdf, write_box_stl, write_case
+from robot_rise.errors import ConfigError
+from robot_rise.model import compose, load_robot, model_index
+from robot_rise.robot_import import import_robot, read_model
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "robots"
+
+
+def _import(case, out: Path, **kwargs):  # type: ignore[no-untyped-def]
+    return import_robot(case.model, out, servos=case.servos, servo_models=None if case.servos else {"*": SERVO}, package_paths=case.package_paths, **kwargs)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_each_feature_of_published_files_imports_keeping_mass_and_collision_geoms(name: str, tmp_path: Path) -> None:
+    case = write_case(name, tmp_path / "src")
+    result = _import(case, tmp_path / "robot")
+    for expected in case.expect_notes:
+        assert any(expected in n for n in result.notes), (expected, result.notes)
+    assert abs(result.mass_kg - result.declared_mass_kg) <= 0.01 * result.declared_mass_kg
+    assert result.collision_geoms == result.declared_collision_geoms == 18
+    robot = load_robot(result.directory)
+    have = robot.roles.by_role()
+    for side in ("left", "right"):
+        for role in ("hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll", "shoulder_pitch", "shoulder_roll", "elbow"):
+            assert f"{side}.{role}" in have, (name, side, role)
+        assert have[f"{side}.knee"].joint == f"{side[0]}_knee"  # the left leg is the file's l_ leg
+    assert "held" in result.stand and robot.stand_height_m > 0.25
+    assert compose(robot, "flat").nu == robot.n_joints
+
+
+def test_a_turned_root_frame_stands_as_the_unturned_file_does(tmp_path: Path) -> None:
+    """The same body written in turned axes: the same roles, signs and standing height."""
+    plain = _import(write_case("fixed_links", tmp_path / "a"), tmp_path / "plain")
+    turned = _import(write_case("turned_frame", tmp_path / "b"), tmp_path / "turned")
+    a, b = load_robot(plain.directory), load_robot(turned.directory)
+    assert {(r.role, r.sign) for r in a.roles.joints} == {(r.role, r.sign) for r in b.roles.joints}
+    assert a.stand_height_m == pytest.approx(b.stand_height_m, abs=0.003)
+    assert b.root_body == "robot_rise_base"
+
+
+def test_a_mesh_that_cannot_be_found_is_one_line_naming_the_uri_and_where_it_looked(tmp_path: Path) -> None:
+    model = tmp_path / "pkg" / "urdf" / "robot.urdf"
+    model.parent.mkdir(parents=True)
+    model.write_text(humanoid_urdf(foot_mesh="package://no_such_pkg/meshes/foot.stl"))
+    with pytest.raises(ConfigError) as e:
+        import_robot(model, tmp_path / "out", servo_models={"*": SERVO}, package_paths=[tmp_path])
+    msg = str(e.value)
+    assert "\n" not in msg and "package://no_such_pkg/meshes/foot.stl" in msg
+    assert f"{tmp_path}/no_such_pkg/meshes/foot.stl" in msg and "--package-path" in msg
+    assert not (tmp_path / "out").exists()
+
+
+def test_ros_package_path_finds_a_package_the_file_does_not_sit_in(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    case = write_case("package_path", tmp_path / "src")
+    with pytest.raises(ConfigError, match="cannot find package://mini_meshes"):
+        import_robot(case.model, tmp_path / "a", servo_models={"*": SERVO})
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(case.package_paths[0]))
+    assert "held" in import_robot(case.model, tmp_path / "b", servo_models={"*": SERVO}).stand
+
+
+def test_xacro_is_expanded_without_file_uris_reaching_mujoco(tmp_path: Path) -> None:
+    case = write_case("xacro", tmp_path / "src")
+    source = read_model(case.model)
+    assert source.kind == "xacro" and "$(find" not in source.urdf_text
+    assert all(Path(m.file).is_absolute() and Path(m.file).is_file() for m in source.spec.meshes)
+    assert not any(m.file.startswith("file:") for m in source.spec.meshes)
+
+
+def test_mujocos_reason_reaches_the_user_in_one_line_with_the_element(tmp_path: Path) -> None:
+    """A collision mesh MuJoCo cannot hull: its message's first line (not its last) and the element."""
+    mesh = tmp_path / "meshes" / "plate.stl"
+    write_box_stl(mesh, (0.06, 0.035, 0.0), flat=True)
+    model = tmp_path / "robot.urdf"
+    model.write_text(humanoid_urdf(foot_mesh=str(mesh)))
+    with pytest.raises(ConfigError) as e:
+        import_robot(model, tmp_path / "out", servo_models={"*": SERVO})
+    msg = str(e.value)
+    assert "\n" not in msg and str(model) in msg
+    assert "coplanar" in msg and "Element name" in msg
+
+
+def test_a_servo_limit_a_rounding_outside_is_taken_further_is_refused(tmp_path: Path) -> None:
+    case = write_case("limits", tmp_path / "src")
+    result = _import(case, tmp_path / "ok")
+    robot = load_robot(result.directory)
+    hip = robot.joint_names.index("l_hip_flex")
+    assert robot.servos[hip].lower == pytest.approx(-1.8, abs=1e-6)  # the servo map's -1.8015, the model's -1.8
+    neck = robot.joint_names.index("neck_yaw")
+    assert (robot.joint_lower[neck], robot.joint_upper[neck]) == pytest.approx((-1.2, 1.2))  # placeholder +-pi replaced
+    text = case.servos.read_text().replace("min = -1.8015", "min = -1.8035")
+    case.servos.write_text(text)
+    with pytest.raises(ConfigError, match=r"l_hip_flex.*by more than a rounding \(2 mrad\)") as e:
+        _import(case, tmp_path / "refused")
+    assert "\n" not in str(e.value) and not (tmp_path / "refused").exists()
+
+
+def test_dry_run_prints_every_inference_and_writes_nothing(tmp_path: Path) -> None:
+    case = write_case("cad_urdf", tmp_path / "src")
+    out = tmp_path / "robot"
+    r = subprocess.run(
+        [sys.executable, "-m", "robot_rise", "robot", "import", str(case.model), "--out", str(out), "--servo-model", SERVO, "--dry-run"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "triangle inequality" in r.stdout and "mass floor" in r.stdout and "standing posture" in r.stdout
+    assert "dry run" in r.stdout and not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
+
+
+def test_the_stand_is_taken_from_a_posture_file_and_a_missing_one_is_one_line(tmp_path: Path) -> None:
+    case = write_case("fixed_links", tmp_path / "src")
+    with pytest.raises(ConfigError, match="--stand nope.json: no such posture file"):
+        _import(case, tmp_path / "a", stand="nope.json")
+    bend = {f"{s}_{j}": v for s in "lr" for j, v in (("hip_flex", -0.3), ("knee", 0.6), ("ankle_pitch", -0.3))}
+    stand = tmp_path / "stand.json"
+    stand.write_text(json.dumps({"format": "robot-rise/posture@1", "robot": "mini", "root_pos": [0, 0, 0.3], "root_quat": [1, 0, 0, 0], "joints": bend}))
+    result = _import(case, tmp_path / "b", stand=stand)
+    assert result.stand.startswith(f"standing posture: --stand {stand}")
+    robot = load_robot(result.directory)
+    assert robot.stand_qpos[7 + robot.joint_names.index("l_knee")] == pytest.approx(0.6)
+
+
+def test_no_stand_says_what_was_tried_and_how_to_give_one(tmp_path: Path) -> None:
+    """Feet too small to stand on: every candidate's reason, then the way out."""
+    model = tmp_path / "stilts.urdf"
+    model.write_text(humanoid_urdf().replace('<box size="0.12 0.07 0.01"/>', '<sphere radius="0.004"/>'))
+    with pytest.raises(ConfigError) as e:
+        import_robot(model, tmp_path / "out", servo_models={"*": SERVO})
+    assert "tried knees 40 deg" in str(e.value) and "\n" not in str(e.value)
+    assert "--stand POSTURE.json" in e.value.hint
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.skipif(not (SHARED / "poppy").is_dir(), reason="../shared/robots not beside the repository")
+def test_poppy_as_solidworks_exported_it_imports(tmp_path: Path) -> None:
+    """package://meshes with the package name lost, .URDF and .STL in upper case, names whose case
+    differs from the disk, no floating joint, axes with y backward, a 5-joint spine, CAD meshes
+    drawn into each other, mirrored knees that disagree, MX-28 knees that lock to stand."""
+    result = import_robot(SHARED / "poppy/robots/Poppy_Humanoid.URDF", tmp_path / "poppy", servos=SHARED / "poppy/poppy_servos.toml")
+    notes = "\n".join(result.notes)
+    assert "differ in case" in notes and "free joint added" in notes and "forward is its -y" in notes
+    assert "spine: 5 joints" in notes and "collision excluded between" in notes
+    assert "left.knee and right.knee disagree" in notes
+    robot = load_robot(result.directory)
+    assert robot.name == "poppy" and set(robot.roles.missing_roles()) == {"left.ankle_roll", "right.ankle_roll"}
+    assert abs(result.mass_kg - result.declared_mass_kg) < 0.01 * result.declared_mass_kg and result.collision_geoms == 26
+
+
+@pytest.mark.skipif(not (SHARED / "wolfgang_ros").is_dir(), reason="../shared/robots not beside the repository")
+def test_wolfgang_as_its_ros_package_publishes_it_imports(tmp_path: Path) -> None:
+    result = import_robot(
+        SHARED / "wolfgang_ros/wolfgang_description/urdf/robot.urdf", tmp_path / "w", servos=SHARED / "wolfgang_ros/servos.toml"
+    )
+    notes = "\n".join(result.notes)
+    assert "taken as the model's: RShoulderPitch [-3.1415, 3.1415] -> [-3.14000, 3.14000]" in notes
+    assert "base_link" in notes and "sole tilted 15 deg" in notes
+    robot = load_robot(result.directory)
+    assert robot.name == "wolfgang_robot" and not robot.roles.missing_roles()
+    assert result.mass_kg == pytest.approx(6.1167, abs=1e-3) and result.collision_geoms == result.declared_collision_geoms
+    # its soles lie flat where it stands (the file's zero pose tilts them 15 deg)
+    m = compose(robot, None, with_actuators=False)
+    d = mujoco.MjData(m)
+    idx = model_index(m, robot)
+    d.qpos[idx.qpos_root] = robot.stand_qpos[:7]
+    d.qpos[idx.qpos_joints] = robot.stand_qpos[7:]
+    mujoco.mj_kinematics(m, d)
+    for site in robot.sole_sites:
+        assert d.site(site).xmat.reshape(3, 3)[:, 2] @ [0, 0, 1] > np.cos(np.radians(3))
