@@ -13,6 +13,7 @@ __all__ = [
     "FormatError",
     "PostureError",
     "SceneError",
+    "mujoco_reason",
 ]
 
 
@@ -42,3 +43,14 @@ class PostureError(FormatError):
 
 class SceneError(ConfigError):
     """A scene file cannot be composed with the robot."""
+
+
+def mujoco_reason(error: BaseException) -> str:
+    """MuJoCo's message as one line: its reason (the first line, which says why) and the element
+    it names (its last lines say only where: "Element name 'x', id 13")."""
+    lines = [line.strip() for line in str(error).strip().splitlines() if line.strip()]
+    if not lines:
+        return type(error).__name__
+    reason = lines[0].removeprefix("Error: ").rstrip(".")
+    element = next((line for line in lines[1:] if line.lower().startswith(("element", "object"))), "")
+    return f"{reason} ({element})" if element and element not in reason else reason

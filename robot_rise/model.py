@@ -23,7 +23,8 @@ import mujoco
 import numpy as np
 
 from robot_rise.constants import ENVELOPE_MARGIN, METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
-from robot_rise.errors import ConfigError, SceneError
+from robot_rise.errors import ConfigError, SceneError, mujoco_reason
+from robot_rise.linkage import Linkage, close_loops, linkage_of
 from robot_rise.paths import default_robot_dir, scene_path
 from robot_rise.roles import JointRole, RoleMap
 from robot_rise.servo import ROBOT_SERVO_MODELS_FILE, ServoDatasheet, servo_datasheet
@@ -95,6 +96,9 @@ class Robot:
         roles: joint roles (``[roles]`` of robot.toml, :mod:`robot_rise.roles`); None if not given.
         supply_voltage_v: the servos' supply [V] (servos.toml ``[bus] supply_voltage_v``): the
             stall torque, no-load speed and position gain every simulation of this robot uses.
+        passive_joints: hinges no servo drives, moved by the model's equality constraints (a
+            four-bar knee's rod, a coupled neck joint; ``robot.toml`` ``passive``): solved by
+            :func:`robot_rise.linkage.close_loops` wherever a posture becomes a qpos.
     """
 
     name: str
@@ -114,6 +118,7 @@ class Robot:
     library: str = ""
     roles: RoleMap | None = None
     supply_voltage_v: float = SUPPLY_VOLTAGE_V
+    passive_joints: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -151,6 +156,8 @@ class Robot:
         d.qpos[:] = m.qpos0
         d.qpos[idx.qpos_root] = self.stand_qpos[:7]
         d.qpos[idx.qpos_joints] = self.stand_qpos[7:]
+        if idx.linkage is not None:
+            close_loops(m, d, idx.linkage)
         mujoco.mj_forward(m, d)
         return m, d, idx
 
@@ -232,7 +239,7 @@ def model_files(xml_path: str | os.PathLike[str]) -> tuple[Path, ...]:
     try:
         spec = mujoco.MjSpec.from_file(str(main))
     except Exception as e:  # mujoco raises ValueError with the parser message
-        raise ConfigError(f"{main}: cannot load MJCF: {e}") from e
+        raise ConfigError(f"{main}: cannot load MJCF: {mujoco_reason(e)}") from e
 
     def asset(directory: str, name: str) -> Path:
         if spec.strippath:
@@ -280,7 +287,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         spec = mujoco.MjSpec.from_file(str(xml_path))
         m = spec.compile()
     except Exception as e:  # mujoco raises ValueError with the parser message
-        raise ConfigError(f"{xml_path}: cannot load MJCF: {e}") from e
+        raise ConfigError(f"{xml_path}: cannot load MJCF: {mujoco_reason(e)}") from e
 
     free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
     if len(free) != 1:
@@ -289,6 +296,15 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
     hinge = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     if len(hinge) != m.njnt - 1:
         raise ConfigError(f"{xml_path}: only hinge joints (plus the root free joint) are supported")
+    passive = meta.get("passive", [])
+    if not isinstance(passive, list) or not all(isinstance(p, str) for p in passive):
+        raise ConfigError(f"{root / 'robot.toml'}: passive must be a list of joint names")
+    unknown = [p for p in passive if p not in {m.joint(j).name for j in hinge}]
+    if unknown:
+        raise ConfigError(f"{root / 'robot.toml'}: passive names joints {xml_path.name} lacks: {', '.join(unknown)}")
+    if passive and not m.neq:
+        raise ConfigError(f"{root / 'robot.toml'}: passive joints {', '.join(passive)}, but {xml_path.name} has no equality constraint to move them")
+    hinge = [j for j in hinge if m.joint(j).name not in passive]
     joint_names = tuple(m.joint(j).name for j in hinge)
     if not all(m.jnt_limited[j] for j in hinge):
         bad = [m.joint(j).name for j in hinge if not m.jnt_limited[j]]
@@ -347,6 +363,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         library=str(meta.get("library", meta.get("name", root.name))),
         roles=roles,
         supply_voltage_v=supply_v,
+        passive_joints=tuple(passive),
     )
 
 
@@ -439,6 +456,8 @@ class ModelIndex:
         robot_geoms, ground_geoms, obstacle_geoms: geom id arrays.
         root_body: body id of the root.
         geom_kind: per geom of the model, GEOM_ROBOT, GEOM_GROUND or GEOM_OBSTACLE, shape (ngeom,).
+        linkage: the constraints and passive joints to close after setting a qpos (None: the
+            robot has no passive joints; :func:`robot_rise.linkage.close_loops`).
     """
 
     qpos_root: np.ndarray
@@ -451,6 +470,7 @@ class ModelIndex:
     obstacle_geoms: np.ndarray
     root_body: int
     geom_kind: np.ndarray
+    linkage: Linkage | None = None
 
 
 def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
@@ -485,7 +505,69 @@ def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
         obstacle_geoms=ro(obstacles),
         root_body=root_body,
         geom_kind=ro(kind),
+        linkage=linkage_of(m, robot.passive_joints) if robot.passive_joints else None,
     )
+
+
+@dataclass(frozen=True)
+class _Tendon:
+    """A tendon of the robot file, kept by name across composition (a wrap's target cannot be
+    renamed once attached, so tendons are taken out before and made again after)."""
+
+    name: str
+    wraps: tuple[tuple[str, str, float, str], ...]  # (kind, target name, coef or divisor, side site)
+    settings: dict[str, object]
+
+
+_TENDON_SETTINGS = ("stiffness", "damping", "frictionloss", "armature", "margin", "width", "springlength", "range", "limited", "rgba", "group")
+
+
+def _detach_tendons(spec: mujoco.MjSpec) -> tuple[list[_Tendon], list[dict[str, object]]]:
+    """Take the tendons out of the robot's spec, and the tendon couplings that name them."""
+    couplings = []
+    for eq in list(spec.equalities):
+        if eq.type == mujoco.mjtEq.mjEQ_TENDON:
+            couplings.append({k: getattr(eq, k) for k in ("name", "name1", "name2", "data", "solref", "solimp", "active")})
+            spec.delete(eq)
+    out = []
+    for t in list(spec.tendons):
+        wraps = []
+        for k in range(len(t.path)):
+            w = t.path[k]
+            target = w.target
+            kind = {mujoco.mjtWrap.mjWRAP_JOINT: "joint", mujoco.mjtWrap.mjWRAP_SITE: "site", mujoco.mjtWrap.mjWRAP_PULLEY: "pulley"}.get(
+                w.type, "geom"
+            )
+            weight = float(w.coef) if kind == "joint" else float(w.divisor) if kind == "pulley" else 0.0
+            wraps.append((kind, target.name if target is not None else "", weight, w.sidesite.name if getattr(w, "sidesite", None) is not None else ""))
+        settings = {k: getattr(t, k) for k in _TENDON_SETTINGS if hasattr(t, k)}
+        out.append(_Tendon(t.name, tuple(wraps), settings))
+        spec.delete(t)
+    return out, couplings
+
+
+def _attach_tendons(spec: mujoco.MjSpec, detached: tuple[list[_Tendon], list[dict[str, object]]]) -> None:
+    tendons, couplings = detached
+    for tendon in tendons:
+        t = spec.add_tendon()
+        t.name = tendon.name
+        for k, v in tendon.settings.items():
+            setattr(t, k, v)
+        for kind, target, weight, side in tendon.wraps:
+            if kind == "joint":
+                t.wrap_joint(target, weight)
+            elif kind == "site":
+                t.wrap_site(target)
+            elif kind == "pulley":
+                t.wrap_pulley(weight)
+            else:
+                t.wrap_geom(target, side)
+    for coupling in couplings:
+        eq = spec.add_equality()
+        eq.type = mujoco.mjtEq.mjEQ_TENDON
+        eq.objtype = mujoco.mjtObj.mjOBJ_TENDON
+        for k, v in coupling.items():
+            setattr(eq, k, v)
 
 
 def compose(
@@ -523,9 +605,10 @@ def compose(
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except Exception as e:
-            raise SceneError(f"cannot read scene {path}: {e}", hint="shipped scenes: flat, beam, low_bed, table, slope, icy, soft") from e
+            raise SceneError(f"cannot read scene {path}: {mujoco_reason(e)}", hint="shipped scenes: flat, beam, low_bed, table, slope, icy, soft") from e
         # Attach under a temporary prefix, then strip it: names stay the robot's own and MuJoCo
         # does not warn about an empty prefix.
+        tendons = _detach_tendons(rspec)
         frame = spec.worldbody.add_frame()
         frame.attach_body(rspec.body(robot.root_body), _ATTACH_PREFIX, "")
         for elements in (spec.bodies, spec.joints, spec.geoms, spec.sites, spec.cameras):
@@ -537,6 +620,11 @@ def compose(
             for f in fields:
                 if getattr(el, f).startswith(_ATTACH_PREFIX):
                     setattr(el, f, getattr(el, f)[len(_ATTACH_PREFIX) :])
+        # closed linkages: equality constraints name the renamed bodies, joints and tendons
+        for eq in spec.equalities:
+            eq.name = eq.name.removeprefix(_ATTACH_PREFIX)
+            eq.name1, eq.name2 = eq.name1.removeprefix(_ATTACH_PREFIX), eq.name2.removeprefix(_ATTACH_PREFIX)
+        _attach_tendons(spec, tendons)
     if voltage_v is None:
         voltage_v = robot.supply_voltage_v
     if with_actuators:
@@ -564,7 +652,7 @@ def compose(
     try:
         m = spec.compile()
     except Exception as e:
-        raise SceneError(f"cannot compose robot {robot.name} with scene {scene}: {e}") from e
+        raise SceneError(f"cannot compose robot {robot.name} with scene {scene}: {mujoco_reason(e)}") from e
     if friction_scale != 1.0:
         m.geom_friction[:, 0] *= friction_scale
     if mass_scale != 1.0:

@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from robot_rise.errors import PostureError
-from robot_rise.fileio import write_text_atomic
+from robot_rise.errors import FormatError, PostureError
+from robot_rise.fileio import read_json, write_text_atomic
 from robot_rise.model import ModelIndex, Robot
 
 __all__ = [
@@ -285,13 +285,9 @@ def read_posture(path: str | os.PathLike[str], robot: Robot | None = None, *, li
     """
     path = Path(path)
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise PostureError(f"{path}: no such posture file") from None
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise PostureError(f"{path}: not valid JSON ({e})") from None
+        obj = read_json(path, "posture file")
+    except FormatError as e:
+        raise PostureError(str(e), hint=e.hint) from None
     return posture_from_dict(obj, robot, where=str(path), limit_tolerance_rad=limit_tolerance_rad)
 
 

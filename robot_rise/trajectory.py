@@ -24,12 +24,13 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import FormatError
-from robot_rise.fileio import write_text_atomic
+from robot_rise.fileio import read_json, write_text_atomic
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict
 
-__all__ = ["Trajectory", "TRAJECTORY_FORMAT", "read_trajectory", "write_trajectory", "trajectory_from_dict", "trajectory_to_dict", "write_csv"]
+__all__ = ["Trajectory", "TRAJECTORY_FORMAT", "MAX_TRAJECTORY_S", "read_trajectory", "write_trajectory", "trajectory_from_dict", "trajectory_to_dict", "write_csv"]
 
 TRAJECTORY_FORMAT = "robot-rise/trajectory@1"
+MAX_TRAJECTORY_S = 600.0  # a file lasting longer is not a get-up (rises last under 20 s): refused on reading, before any replay
 
 
 @dataclass(frozen=True)
@@ -133,6 +134,12 @@ def _jsonable(x: Any) -> Any:
     return x
 
 
+def _holds_non_numbers(x: Any) -> bool:
+    if isinstance(x, list):
+        return any(_holds_non_numbers(v) for v in x)
+    return isinstance(x, bool) or not isinstance(x, (int, float))
+
+
 def trajectory_from_dict(obj: Any, *, where: str = "trajectory") -> Trajectory:
     """Parse a trajectory@1 object.
 
@@ -153,12 +160,17 @@ def trajectory_from_dict(obj: Any, *, where: str = "trajectory") -> Trajectory:
     report = obj.get("report", {})
     if not isinstance(report, dict):
         raise FormatError(f"{where}: 'report' must be an object")
+    for key in ("t", "q", "root"):  # numbers, not numbers written as text ("0.1" would parse)
+        if key in obj and obj[key] is not None and _holds_non_numbers(obj[key]):
+            raise FormatError(f"{where}: {key!r} must hold numbers only (found text, a boolean or null)")
     try:
         t = np.asarray(obj["t"], dtype=float)
         q = np.asarray(obj["q"], dtype=float)
         root = None if obj.get("root") is None else np.asarray(obj["root"], dtype=float)
     except (TypeError, ValueError) as e:
         raise FormatError(f"{where}: 't', 'q' and 'root' must be numbers ({e})") from None
+    if t.size and np.isfinite(t[-1]) and t[-1] > MAX_TRAJECTORY_S:
+        raise FormatError(f"{where}: lasts {t[-1]:g} s; a get-up file lasts at most {MAX_TRAJECTORY_S:g} s")
     try:
         return Trajectory(str(obj["robot"]), tuple(names), t, q, start, report, root)
     except FormatError as e:
@@ -168,14 +180,7 @@ def trajectory_from_dict(obj: Any, *, where: str = "trajectory") -> Trajectory:
 def read_trajectory(path: str | os.PathLike[str]) -> Trajectory:
     """Read and validate a trajectory file."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise FormatError(f"{path}: no such trajectory file") from None
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise FormatError(f"{path}: not valid JSON ({e})") from None
+    obj = read_json(path, "trajectory file")
     return trajectory_from_dict(obj, where=str(path))
 
 

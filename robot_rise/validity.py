@@ -29,6 +29,7 @@ import numpy as np
 from robot_rise.geometry import collision_mask, colliding_geoms, lowest_point_z, mesh_hulls
 from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture
+from robot_rise.linkage import close_loops
 
 __all__ = ["Looseness", "STRICT", "Collision", "ValidityReport", "ValidityChecker", "CollisionKind", "DEFAULT_CONTACT_TOLERANCE_M"]
 
@@ -178,6 +179,13 @@ class ValidityChecker:
         """Posture -> qpos of this checker's model, shape (nq,)."""
         return posture.qpos(self.robot, self.index, self.model.qpos0)
 
+    def _kinematics(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """Forward kinematics of ``d.qpos``, a closed linkage's passive joints solved first."""
+        if self.index.linkage is not None:
+            close_loops(m, d, self.index.linkage)  # leaves the kinematics computed
+        else:
+            mujoco.mj_kinematics(m, d)
+
     # --- checks -------------------------------------------------------------------------------
 
     def is_valid_qpos(self, qpos: np.ndarray) -> bool:
@@ -187,7 +195,7 @@ class ValidityChecker:
             return False
         m, d = self.model, self._data
         d.qpos[:] = qpos
-        mujoco.mj_kinematics(m, d)
+        self._kinematics(m, d)
         mujoco.mj_collision(m, d)
         n = d.ncon
         if n == 0:
@@ -221,7 +229,7 @@ class ValidityChecker:
             viol.append(f"{self.robot.joint_names[i]}={qj[i]:.4f} not in [{lo[i]:.4f}, {hi[i]:.4f}] ({past_mrad:.2f} mrad past)")
         m, d = self._probe_model, self._probe_data
         d.qpos[:] = qpos
-        mujoco.mj_kinematics(m, d)
+        self._kinematics(m, d)
         mujoco.mj_collision(m, d)
         clear = {"ground": self.clearance_margin_m, "self": self.clearance_margin_m, "obstacle": self.clearance_margin_m}
         deepest: dict[tuple[int, int], Collision] = {}  # one entry per geom pair, its deepest contact
@@ -255,7 +263,7 @@ class ValidityChecker:
         """Lowest z of the robot's collision geometry in this posture [m]: exact, meshes by their hulls."""
         d = self._data
         d.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, d)
+        self._kinematics(self.model, d)
         return lowest_point_z(self.model, d, self._resting_geoms, self._hulls)
 
 

@@ -113,7 +113,8 @@ def test_mesh_statics_use_vertices(imported) -> None:  # type: ignore[no-untyped
     robot = imported["bez1"].robot
     st = Statics(robot)
     st.place(np.asarray(robot.stand_qpos[7:], dtype=float))
-    assert st.lowest(st.other_geoms) > 0.02
+    # the sole site sits at the foot mesh's lowest vertex (robot import): the ankles clear by ~11 mm
+    assert st.lowest(st.other_geoms) > 0.005
 
 
 def test_collision_free_opens_a_knee_the_body_cannot_flex_that_far(imported) -> None:  # type: ignore[no-untyped-def]

@@ -370,6 +370,82 @@ def _limits(d: Path) -> ImportCase:
     )  # fmt: skip
 
 
+def _mjcf_tree(fusestatic: bool = False):  # type: ignore[no-untyped-def]
+    """The humanoid as an MJCF element tree (a free joint on the torso)."""
+    from xml.etree import ElementTree  # noqa: PLC0415
+
+    import mujoco  # noqa: PLC0415
+
+    spec = mujoco.MjSpec.from_string(humanoid_urdf())
+    spec.compiler.fusestatic = fusestatic
+    spec.worldbody.bodies[0].add_freejoint()
+    return ElementTree.fromstring(spec.to_xml())
+
+
+def _four_bar_knee(d: Path) -> ImportCase:
+    """Each knee a parallelogram four-bar: beside the knee joint (thigh -> shin) a rocker on a
+    passive hinge of the thigh, a coupler on a passive hinge of the rocker, the coupler's far end
+    pinned to the shin by an equality ``connect``; the file actuates the driven joints."""
+    from xml.etree import ElementTree  # noqa: PLC0415
+
+    root = _mjcf_tree()
+    bodies = {b.get("name"): b for b in root.iter("body")}
+    equality = ElementTree.SubElement(root, "equality")
+    actuator = ElementTree.SubElement(root, "actuator")
+    thin = {"contype": "0", "conaffinity": "0", "mass": "0.005"}
+    for side in "lr":
+        # knee A at (0, 0, -0.12) of the thigh; rocker pivot C = A + (0.012, 0, -0.028) on a bracket;
+        # rocker and crank 40 mm long, the coupler as long as A-C: a parallelogram, one degree of
+        # freedom, its links collinear only at knee angles outside the knee's range (-0.41, 2.74 rad)
+        rocker = ElementTree.SubElement(bodies[f"{side}_thigh"], "body", {"name": f"{side}_knee_rocker", "pos": "0.012 0 -0.148"})
+        ElementTree.SubElement(rocker, "joint", {"name": f"{side}_knee_rocker", "axis": "0 1 0", "range": "-2.8 2.8"})
+        ElementTree.SubElement(rocker, "geom", {"type": "capsule", "fromto": "0 0 0 0 0 -0.04", "size": "0.003", **thin})
+        coupler = ElementTree.SubElement(rocker, "body", {"name": f"{side}_knee_coupler", "pos": "0 0 -0.04"})
+        ElementTree.SubElement(coupler, "joint", {"name": f"{side}_knee_coupler", "axis": "0 1 0", "range": "-2.8 2.8"})
+        ElementTree.SubElement(coupler, "geom", {"type": "capsule", "fromto": "0 0 0 -0.012 0 0.028", "size": "0.003", **thin})
+        ElementTree.SubElement(equality, "connect", {"name": f"{side}_knee_loop", "body1": f"{side}_knee_coupler", "body2": f"{side}_shin", "anchor": "-0.012 0 0.028"})
+    for j in root.iter("joint"):
+        name = j.get("name", "")
+        if name and "_knee_" not in name:
+            ElementTree.SubElement(actuator, "position", {"name": name, "joint": name, "kp": "10"})
+    model = d / "four_bar.xml"
+    model.write_text(ElementTree.tostring(root, encoding="unicode"))
+    return ImportCase(
+        "four_bar_knee", model, expect_notes=("passive joints", "closed loops: l_knee_rocker, l_knee_coupler, r_knee_rocker, r_knee_coupler"),
+        feature="closed four-bar knees (rocker and coupler on passive hinges, pinned to the shin by an equality connect), the file actuating the driven joints",
+    )  # fmt: skip
+
+
+def _coupled_joints(d: Path) -> ImportCase:
+    """A neck of two yaw joints, the upper following the lower (equality ``joint``), and each
+    forearm's passive wrist turned through a tendon coupled to the elbow (equality ``tendon``)."""
+    from xml.etree import ElementTree  # noqa: PLC0415
+
+    root = _mjcf_tree()
+    bodies = {b.get("name"): b for b in root.iter("body")}
+    head = bodies["head"]
+    top = ElementTree.SubElement(head, "body", {"name": "head_top", "pos": "0 0 0.06"})
+    ElementTree.SubElement(top, "joint", {"name": "neck_yaw_upper", "axis": "0 0 1", "range": "-1 1"})
+    ElementTree.SubElement(top, "geom", {"type": "sphere", "size": "0.015", "mass": "0.01"})
+    tendon = ElementTree.SubElement(root, "tendon")
+    equality = ElementTree.SubElement(root, "equality")
+    ElementTree.SubElement(equality, "joint", {"name": "neck_coupling", "joint1": "neck_yaw_upper", "joint2": "neck_yaw", "polycoef": "0 0.5 0 0 0"})
+    for side in "lr":
+        hand = ElementTree.SubElement(bodies[f"{side}_forearm"], "body", {"name": f"{side}_hand", "pos": "0 0 -0.1"})
+        ElementTree.SubElement(hand, "joint", {"name": f"{side}_wrist", "axis": "0 0 1", "range": "-1.5 1.5"})
+        ElementTree.SubElement(hand, "geom", {"type": "box", "size": "0.01 0.015 0.02", "pos": "0 0 -0.02", "mass": "0.02"})
+        for name, joint in ((f"{side}_wrist_drive", f"{side}_wrist"), (f"{side}_elbow_drive", f"{side}_elbow")):
+            fixed = ElementTree.SubElement(tendon, "fixed", {"name": name})
+            ElementTree.SubElement(fixed, "joint", {"joint": joint, "coef": "1"})
+        ElementTree.SubElement(equality, "tendon", {"name": f"{side}_wrist_coupling", "tendon1": f"{side}_wrist_drive", "tendon2": f"{side}_elbow_drive", "polycoef": "0 0.3 0 0 0"})
+    model = d / "coupled.xml"
+    model.write_text(ElementTree.tostring(root, encoding="unicode"))
+    return ImportCase(
+        "coupled_joints", model, expect_notes=("passive joints", "joint couplings: neck_yaw_upper, l_wrist, r_wrist"),
+        feature="coupled joints: an upper neck joint following the lower (equality joint, polycoef) and wrists driven by tendons coupled to the elbows",
+    )  # fmt: skip
+
+
 CASES: dict[str, Callable[[Path], ImportCase]] = {
     "ros_package": _ros_package,
     "package_path": _package_path,
@@ -381,6 +457,8 @@ CASES: dict[str, Callable[[Path], ImportCase]] = {
     "scene_mjcf": _scene_mjcf,
     "turned_frame": _turned_frame,
     "limits": _limits,
+    "four_bar_knee": _four_bar_knee,
+    "coupled_joints": _coupled_joints,
 }
 
 

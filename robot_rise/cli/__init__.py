@@ -11,10 +11,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import math
 import pkgutil
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from robot_rise.errors import RobotRiseError
 
@@ -54,10 +55,64 @@ def _external_error_types() -> tuple[type[BaseException], ...]:
     return tuple(types)
 
 
+_GLOBAL_FLAGS = ("--debug", "-v", "--verbose")
+
+
+def _globals_first(argv: Sequence[str]) -> list[str]:
+    """The global flags moved before the command: ``rise ... --debug`` as ``--debug rise ...``."""
+    argv = list(argv)
+    end = argv.index("--") if "--" in argv else len(argv)
+    flags = [a for a in argv[:end] if a in _GLOBAL_FLAGS]
+    return flags + [a for a in argv[:end] if a not in _GLOBAL_FLAGS] + argv[end:]
+
+
+def _positive(x: float) -> bool:
+    return math.isfinite(x) and x > 0
+
+
+def _non_negative(x: float) -> bool:
+    return math.isfinite(x) and x >= 0
+
+
+# flags (by their dest) whose values must mean something, wherever a command has them
+_FLAG_RULES: dict[str, tuple[Callable[[float], bool], str]] = {
+    "budget": (_positive, "a positive number of seconds"),
+    "margin": (lambda x: math.isfinite(x) and 0 <= x < 1, "a fraction in [0, 1)"),
+    "width": (lambda x: 16 <= x <= 8192, "a width in 16..8192 pixels"),
+    "height": (lambda x: 16 <= x <= 8192, "a height in 16..8192 pixels"),
+    "fps": (lambda x: math.isfinite(x) and 0 < x <= 240, "a frame rate in (0, 240]"),
+    "jobs": (lambda x: x >= 1, "a whole number of processes, at least 1"),
+    "seed": (lambda x: x >= 0, "a non-negative whole number"),
+    "n": (lambda x: x >= 1, "a whole number, at least 1"),
+    "n_per_kind": (lambda x: x >= 1, "a whole number, at least 1"),
+    "variants": (lambda x: x >= 0, "a non-negative whole number"),
+    "tolerance": (_non_negative, "a non-negative number of radians"),
+    "baud": (_positive, "a positive baud rate"),
+    "rate": (_positive, "a positive rate in Hz"),
+    "supply_voltage": (_positive, "a positive number of volts"),
+}
+
+
+_ACTION_DESTS = ("robot_command", "library_command", "bench", "servos_cmd", "mockbus_cmd")
+
+
+def _check_flag_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """A flag given a value that means nothing (a budget of 0, a width of nan) is a usage error (exit 2)."""
+    for dest, (ok, what) in _FLAG_RULES.items():
+        value = getattr(args, dest, None)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        if not ok(float(value)):
+            command = " ".join(str(v) for k, v in vars(args).items() if k in ("command", *_ACTION_DESTS) and isinstance(v, str))
+            print(f"error: {command + ': ' if command else ''}argument --{dest.replace('_', '-')}: must be {what}, not {value!r}", file=sys.stderr)
+            raise SystemExit(EXIT_ERROR)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the process exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_globals_first(sys.argv[1:] if argv is None else argv))
+    _check_flag_values(parser, args)
     level = logging.DEBUG if args.debug else logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     if not getattr(args, "func", None):

@@ -82,6 +82,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     pr.add_argument("--dir", default=argparse.SUPPRESS, type=Path, help="library directory (as library --dir DIR)")
     pr.set_defaults(func=_prove)
+    # --robot and --dir before the action or after it: `library build --robot DIR` as the help examples write it
+    for action in sub.choices.values():
+        names = {o for a in action._actions for o in a.option_strings}
+        if "--robot" not in names:
+            action.add_argument("--robot", type=Path, default=argparse.SUPPRESS, help="robot directory (as library --robot DIR)")
+        if "--dir" not in names:
+            action.add_argument("--dir", type=Path, default=argparse.SUPPRESS, help="library directory (as library --dir DIR)")
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]

@@ -125,5 +125,5 @@ def run_import(args: argparse.Namespace) -> int:
     if not result.written:
         print(f"dry run: robot {result.name} would import into {result.directory} (nothing written)")
         return 0
-    print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library --robot {result.directory} build)")
+    print(f"wrote {result.directory}: robot {result.name} (check robot.toml and servos.toml; build its library: robot-rise library build --robot {result.directory})")
     return 0

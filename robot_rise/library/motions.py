@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robot_rise.errors import FormatError
+from robot_rise.fileio import read_json
 from robot_rise.model import Robot
 from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, read_posture
@@ -102,14 +103,11 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
     """
     root = Path(directory) if directory is not None else default_library_dir(robot_name)
     path = root / "index.json"
-    try:
-        obj = json.loads(path.read_text())
-    except FileNotFoundError:
+    if not path.exists():
         raise FormatError(
-            f"{path}: no motion library index", hint="build the robot's library: robot-rise library --robot ROBOT_DIR build (the shipped OP3's: library author)"
-        ) from None
-    except json.JSONDecodeError as e:
-        raise FormatError(f"{path}: not valid JSON ({e})") from None
+            f"{path}: no motion library index", hint="build the robot's library: robot-rise library build --robot ROBOT_DIR (the shipped OP3's: library author)"
+        )
+    obj = read_json(path, "motion library index")
     if not isinstance(obj, dict) or obj.get("format") != LIBRARY_FORMAT:
         got = obj.get("format") if isinstance(obj, dict) else None
         raise FormatError(f"{path}: format is {got!r}, expected {LIBRARY_FORMAT!r}")

@@ -54,7 +54,7 @@ def _snap(v: np.ndarray) -> np.ndarray:
     return v
 
 
-def stand_frame(m: mujoco.MjModel, root_body: int) -> StandFrame:
+def stand_frame(m: mujoco.MjModel, root_body: int, skip: frozenset[int] = frozenset()) -> StandFrame:
     """The stand frame of the robot at its zero pose.
 
     Raises:
@@ -69,10 +69,10 @@ def stand_frame(m: mujoco.MjModel, root_body: int) -> StandFrame:
     def local(p: np.ndarray) -> np.ndarray:
         return R.T @ (p - origin)
 
-    raw, _ = jointed_limbs(m, root_body)
+    raw, _ = jointed_limbs(m, root_body, skip)
     if len(raw) < 2:
         raise ConfigError(f"the root body {m.body(root_body).name!r} has {len(raw)} jointed limbs: no recognisable legs")
-    tips = [local(tip_point(m, d, int(m.jnt_bodyid[_last_hinge(m, chain)]))) for chain, _ in raw]
+    tips = [local(tip_point(m, d, int(m.jnt_bodyid[_chain_hinges(m, chain, skip)[-1]]))) for chain, _ in raw]
     # down: the signed root axis along which the two farthest-reaching limbs reach farthest
     best = None
     for axis in np.vstack([np.eye(3), -np.eye(3)]):
@@ -84,14 +84,14 @@ def stand_frame(m: mujoco.MjModel, root_body: int) -> StandFrame:
     down = best[1]
     legs = sorted(range(len(raw)), key=lambda i: -float(tips[i] @ down))[:2]
     up = -down
-    hips = [local(d.xanchor[_first_hinge(m, raw[i][0])]) for i in legs]
+    hips = [local(d.xanchor[_chain_hinges(m, raw[i][0], skip)[0]]) for i in legs]
     lateral = hips[0] - hips[1]
     lateral -= (lateral @ up) * up
     if np.linalg.norm(lateral) < 1e-4:
         lateral = (tips[legs[0]] - tips[legs[1]]) - ((tips[legs[0]] - tips[legs[1]]) @ up) * up
     lateral = _snap(lateral)
     forward_axis = np.cross(lateral, up)
-    sign, how = _forward_sign(m, d, raw[legs[0]][0], forward_axis, lateral, R, origin)
+    sign, how = _forward_sign(m, d, _chain_hinges(m, raw[legs[0]][0], skip), forward_axis, lateral, R, origin)
     if sign == 0:
         sign, how = (1, "the root frame's (no knee or toes to tell)") if forward_axis @ np.array([1.0, 0, 0]) >= 0 else (-1, "the root frame's")
     forward = _snap(sign * forward_axis)
@@ -114,19 +114,18 @@ def stand_frame(m: mujoco.MjModel, root_body: int) -> StandFrame:
     return StandFrame(axes, notes)
 
 
-def _first_hinge(m: mujoco.MjModel, chain: list[int]) -> int:
-    return next(j for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE)
-
-
-def _last_hinge(m: mujoco.MjModel, chain: list[int]) -> int:
-    return [j for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE][-1]
+def _chain_hinges(m: mujoco.MjModel, chain: list[int], skip: frozenset[int]) -> list[int]:
+    """The driven hinges along a chain of bodies, root to tip."""
+    return [
+        j for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and j not in skip
+    ]  # fmt: skip
 
 
 def _forward_sign(
-    m: mujoco.MjModel, d: mujoco.MjData, chain: list[int], forward: np.ndarray, lateral: np.ndarray, R: np.ndarray, origin: np.ndarray
+    m: mujoco.MjModel, d: mujoco.MjData, hinges: list[int], forward: np.ndarray, lateral: np.ndarray, R: np.ndarray, origin: np.ndarray
 ) -> tuple[int, str]:
-    """+1 if ``forward`` (root frame) is the robot's forward, -1 if backward, 0 if the leg cannot tell."""
-    hinges = [j for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    """+1 if ``forward`` (root frame) is the robot's forward, -1 if backward, 0 if the leg (its driven hinges) cannot tell."""
     tip_body = int(m.jnt_bodyid[hinges[-1]])
     # the knee: a middle joint of the leg turning about the lateral axis, with a one-sided range
     top = R.T @ (d.xanchor[hinges[0]] - origin)

@@ -16,6 +16,7 @@ leaves nothing behind; a dry run does all of it in a scratch directory and write
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -27,13 +28,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robot_rise.errors import ConfigError, RobotRiseError
+from robot_rise.errors import ConfigError, mujoco_reason
 from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT, SUPPLY_VOLTAGE_V, load_robot, supply_voltage
+from robot_rise.linkage import close_loops, linkage_of
+from robot_rise.robot_import.constraints import passive_joints
 from robot_rise.robot_import.frame import BASE_BODY, reframe_root, stand_frame
 from robot_rise.robot_import.limits import joint_ranges, urdf_limit_tags
 from robot_rise.robot_import.repair import PhysicsRepair, repair_physics
-from robot_rise.robot_import.roles import InferredRoles, foot_geoms, geom_points, infer_roles
-from robot_rise.robot_import.source import ModelSource, mujoco_reason, read_model
+from robot_rise.robot_import.roles import InferredRoles, foot_geoms, geom_points, infer_roles, jointed_limbs
+from robot_rise.robot_import.source import read_model
 from robot_rise.robot_import.stand import stand_candidates
 from robot_rise.servo import servo_datasheet
 
@@ -44,6 +47,7 @@ TORSO_SITE = "robot_rise_torso"
 STAND_CHECK_S = 3.0  # a found standing posture must be held this long by the servo model
 STAND_SETTLE_S = 1.0  # of which the first second settles it (a weak robot sinks onto its stops)
 ASSET_DIR = "assets"
+MIN_SERVO_ID, MAX_SERVO_ID = 0, 252  # Dynamixel IDs (253 is reserved, 254 broadcasts)
 
 
 @dataclass(frozen=True)
@@ -90,10 +94,29 @@ def _read_servo_map(path: Path) -> tuple[dict, list[dict], str]:
     bus = data.get("bus", {})
     if not isinstance(bus, dict):
         raise ConfigError(f"{path}: [bus] must be a table")
+    ids: set[int] = set()
+    joints: set[str] = set()
     for r in rows:
-        for key in ("min", "max"):
-            if key in r and not isinstance(r[key], (int, float)):
-                raise ConfigError(f"{path}: servo {r.get('id')} ({r.get('joint')}): {key} must be a number of radians, not {r[key]!r}")
+        where = f"{path}: servo {r.get('id')!r} ({r.get('joint')!r})"
+        sid, joint = r.get("id"), r.get("joint")
+        if isinstance(sid, bool) or not isinstance(sid, int) or not MIN_SERVO_ID <= sid <= MAX_SERVO_ID:
+            raise ConfigError(f"{where}: id must be a whole number in {MIN_SERVO_ID}..{MAX_SERVO_ID} (Dynamixel IDs), not {sid!r}")
+        if not isinstance(joint, str) or not joint:
+            raise ConfigError(f"{where}: joint must name a joint of the model")
+        if sid in ids or joint in joints:
+            raise ConfigError(f"{where}: {'id ' + str(sid) if sid in ids else 'joint ' + joint} appears twice")
+        ids.add(sid)
+        joints.add(joint)
+        if not isinstance(r.get("model"), str):
+            raise ConfigError(f"{where}: model must name a servo model (e.g. \"MX-28\")")
+        if r.get("direction", 1) not in (1, -1):
+            raise ConfigError(f"{where}: direction must be 1 or -1, not {r.get('direction')!r}")
+        for key in ("min", "max", "zero_offset"):
+            value = r.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"{where}: {key} must be a number of radians, not {value!r}")
+        if "min" in r and "max" in r and not r["min"] < r["max"]:
+            raise ConfigError(f"{where}: min {r['min']} must be below max {r['max']}")
     robot = data.get("robot", "")
     return bus, rows, robot if isinstance(robot, str) else ""
 
@@ -247,6 +270,7 @@ def import_robot(
     notes += base_notes
     # what robot_rise supplies itself: the servo model (actuators), the judge (sensors), keyframes
     ctrlranges = {}
+    actuated = {a.target for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT}
     for a in list(spec.actuators):
         if a.trntype == mujoco.mjtTrn.mjTRN_JOINT and a.ctrllimited != mujoco.mjtLimited.mjLIMITED_FALSE and a.ctrlrange[1] > a.ctrlrange[0]:
             ctrlranges[a.target] = (float(a.ctrlrange[0]), float(a.ctrlrange[1]))
@@ -288,17 +312,23 @@ def import_robot(
         unknown = [str(r.get("joint")) for r in servo_rows if str(r.get("joint")) not in names]
         if unknown:
             raise ConfigError(f"{servos}: names joints the model lacks: {', '.join(unknown)}")
+    root_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, base.name)
+    chains = {j for chain, _ in jointed_limbs(m, root_body)[0] for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])}
+    servo_joints = [str(r.get("joint")) for r in servo_rows] if servo_rows is not None else None
+    passive, passive_notes = passive_joints(m, servo_joints, actuated, chains, str(src))
+    notes += passive_notes
     tags = urdf_limit_tags(source.urdf_text) if source.urdf_text else {}
-    reconciled = joint_ranges(m, ctrlranges, servo_rows, tags, str(src), str(servos))
+    reconciled = joint_ranges(m, ctrlranges, servo_rows, tags, str(src), str(servos), passive)
     ranges, servo_rows = reconciled.ranges, reconciled.servo_rows
     notes += list(reconciled.notes)
     for j in spec.joints:
-        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
+        if j.type == mujoco.mjtJoint.mjJNT_HINGE and j.name in ranges:
             j.range = list(ranges[j.name])
             j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
     m = _compile(spec, src)
     root_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, base.name)
-    frame = stand_frame(m, root_body)
+    skip = frozenset(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in passive)
+    frame = stand_frame(m, root_body, skip)
     if not frame.is_root_frame:
         notes += list(frame.notes)
         spec, turn = reframe_root(spec, base.name, frame)
@@ -317,7 +347,7 @@ def import_robot(
 
     # roles at the neutral zero pose (the root frame is the stand frame)
     q_zero = m.qpos0.copy()
-    inferred = infer_roles(m, q_zero, root_body)
+    inferred = infer_roles(m, q_zero, root_body, passive)
     notes += list(inferred.notes)
     roles = inferred.roles
     legs = {lb.side: lb for lb in inferred.limbs if lb.kind == "leg"}
@@ -352,7 +382,7 @@ def import_robot(
     sole_ids = tuple(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, SOLE_SITE.format(side=s)) for s in ("left", "right"))
 
     # servo map
-    joint_names = [m.joint(j).name for j in hinges]
+    joint_names = [m.joint(j).name for j in hinges if m.joint(j).name not in passive]
     if servo_rows is None:
         servo_rows = _template_servo_map(joint_names, ranges, dict(servo_models or {}))
         notes.append(f"servo map: template (IDs 1-{len(joint_names)} in model order, direction 1, limits = joint ranges): edit servos.toml to your hardware")
@@ -373,9 +403,9 @@ def import_robot(
                 spec.delete(k)
             key = spec.add_key()
             key.name = "stand"
-            key.qpos = cand_q
+            key.qpos = _closed(m, cand_q, passive)
             (tmp / "robot.xml").write_text(spec.to_xml())
-            _write_robot_toml(tmp / "robot.toml", robot_name, m, inferred)
+            _write_robot_toml(tmp / "robot.toml", robot_name, m, inferred, passive)
             ok, why = _holds_standing(tmp)
             if ok:
                 stand_note = f"standing posture: {label}, held {STAND_CHECK_S:.0f} s by the servo model"
@@ -421,7 +451,7 @@ OVERLAP_EXCLUDE_M = 1e-3  # bodies whose collision geoms overlap by more than th
 def _name_geoms(spec: mujoco.MjSpec) -> list[str]:
     """Name unnamed geoms after their body (``pelvis_geom0``): messages and reports name what touches."""
     taken = {g.name for g in spec.geoms if g.name}
-    count = 0
+    count, first = 0, ""
     for body in spec.bodies:
         for k, g in enumerate(body.geoms):
             if g.name:
@@ -432,7 +462,8 @@ def _name_geoms(spec: mujoco.MjSpec) -> list[str]:
             g.name = name
             taken.add(name)
             count += 1
-    return [f"named {count} unnamed geoms after their bodies (pelvis_geom0, ...)"] if count else []
+            first = first or name
+    return [f"named {count} unnamed geoms after their bodies ({first}, ...)"] if count else []
 
 
 def _exclude_designed_overlaps(spec: mujoco.MjSpec, m: mujoco.MjModel, src: Path) -> list[str]:
@@ -458,6 +489,16 @@ def _exclude_designed_overlaps(spec: mujoco.MjSpec, m: mujoco.MjModel, src: Path
         ex.bodyname1, ex.bodyname2 = a, b
     listed = ", ".join(f"{a} / {b} {1000 * v:.0f} mm" for (a, b), v in sorted(pairs.items()))
     return [f"collision excluded between {len(pairs)} body pairs that overlap in the file's zero pose (as built, not a collision): {listed}"]
+
+
+def _closed(m: mujoco.MjModel, qpos: np.ndarray, passive: tuple[str, ...]) -> np.ndarray:
+    """``qpos`` with its passive joints where the constraints put them."""
+    if not passive:
+        return qpos
+    d = mujoco.MjData(m)
+    d.qpos[:] = qpos
+    close_loops(m, d, linkage_of(m, passive))
+    return d.qpos.copy()
 
 
 def _compile(spec: mujoco.MjSpec, src: Path) -> mujoco.MjModel:
@@ -587,7 +628,7 @@ def _write_servos(path: Path, robot: str, rows: list[dict], bus: Mapping[str, ob
     path.write_text("\n".join(lines) + "\n")
 
 
-def _write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: InferredRoles) -> None:
+def _write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: InferredRoles, passive: tuple[str, ...] = ()) -> None:
     roles = inferred.roles
     by_joint = {j.joint: j for j in roles.joints}
     limb_joints: dict[str, list[str]] = {"torso": [], "left_arm": [], "right_arm": [], "left_leg": [], "right_leg": []}
@@ -606,6 +647,10 @@ def _write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: Inferr
         'model = "robot.xml"',
         'servos = "servos.toml"',
         'library = "motions"  # this robot\'s library: robot-rise library build --robot DIR',
+    ]
+    if passive:
+        lines += ["# Hinges no servo drives: the model's equality constraints move them (closed linkages).", f"passive = {_toml_value(list(passive))}"]
+    lines += [
         "",
         "[metric_groups]",
         f"head = {_toml_value(head)}",
@@ -625,7 +670,7 @@ def _write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: Inferr
         "[roles]",
     ]
     for j in range(m.njnt):
-        if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+        if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or m.joint(j).name in passive:
             continue
         r = by_joint[m.joint(j).name]
         lines.append(f"{_toml_value(r.joint)} = {{ role = {_toml_value(r.role)}, sign = {r.sign}, neutral = {_toml_value(float(r.neutral_rad))} }}")

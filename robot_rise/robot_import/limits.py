@@ -82,8 +82,10 @@ def joint_ranges(
     limit_tags: Mapping[str, Mapping[str, float]],
     source: str,
     servo_map: str,
+    passive: tuple[str, ...] = (),
 ) -> JointRanges:
-    """Every hinge's range, and the servo rows' limits reconciled with it.
+    """Every driven hinge's range (a passive one's is the model's, if any), and the servo rows'
+    limits reconciled with it.
 
     Raises:
         ConfigError: a joint has no range anywhere, or a servo map limit lies outside the model's.
@@ -97,6 +99,8 @@ def joint_ranges(
         if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
             continue
         name = m.joint(j).name
+        if name in passive:  # the linkage moves it: no servo limit to reconcile
+            continue
         model_range = (float(m.jnt_range[j, 0]), float(m.jnt_range[j, 1])) if m.jnt_limited[j] else None
         why = _placeholder(*model_range, limit_tags.get(name, {})) if model_range else ""
         if why:

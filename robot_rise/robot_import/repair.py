@@ -20,8 +20,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from robot_rise.errors import ConfigError
-from robot_rise.robot_import.source import mujoco_reason
+from robot_rise.errors import ConfigError, mujoco_reason
 
 __all__ = ["PhysicsRepair", "repair_physics", "MASS_FLOOR_KG", "MASS_KEPT_TOLERANCE"]
 

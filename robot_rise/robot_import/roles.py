@@ -74,12 +74,12 @@ def trunk_bodies(m: mujoco.MjModel, root_body: int) -> set[int]:
     return trunk
 
 
-def _branches(m: mujoco.MjModel, body: int) -> list[int]:
-    """Children of ``body`` whose subtrees carry hinges."""
-    return [c for c in range(body + 1, m.nbody) if m.body_parentid[c] == body and _hinges(m, _subtree(m, c))]
+def _branches(m: mujoco.MjModel, body: int, skip: frozenset[int] = frozenset()) -> list[int]:
+    """Children of ``body`` whose subtrees carry driven hinges."""
+    return [c for c in range(body + 1, m.nbody) if m.body_parentid[c] == body and _hinges(m, _subtree(m, c), skip)]
 
 
-def _spine(m: mujoco.MjModel, first: int) -> tuple[list[int], int]:
+def _spine(m: mujoco.MjModel, first: int, skip: frozenset[int] = frozenset()) -> tuple[list[int], int]:
     """A spine: a chain of bodies from ``first`` to a body two or more limbs branch from (a chest
     carrying arms and head above a waist). ([], -1) if ``first`` starts a plain limb.
 
@@ -88,8 +88,8 @@ def _spine(m: mujoco.MjModel, first: int) -> tuple[list[int], int]:
     chain = [first]
     current = first
     while True:
-        branches = _branches(m, current)
-        limbs = [c for c in branches if len(_hinges(m, _subtree(m, c))) >= 2]
+        branches = _branches(m, current, skip)
+        limbs = [c for c in branches if len(_hinges(m, _subtree(m, c), skip)) >= 2]
         if len(limbs) >= 2:
             return chain, current
         if len(branches) != 1:
@@ -110,8 +110,12 @@ def _main_chain(m: mujoco.MjModel, bodies: list[int]) -> list[int]:
     return chain[::-1]
 
 
-def _hinges(m: mujoco.MjModel, bodies: list[int]) -> list[int]:
-    return [j for b in bodies for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+def _hinges(m: mujoco.MjModel, bodies: list[int], skip: frozenset[int] = frozenset()) -> list[int]:
+    """The hinges of ``bodies``, but those in ``skip`` (passive joints a linkage moves)."""
+    return [
+        j for b in bodies for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and j not in skip
+    ]  # fmt: skip
 
 
 def _lowest_z(m: mujoco.MjModel, d: mujoco.MjData, bodies: list[int]) -> float:
@@ -136,7 +140,9 @@ def tip_point(m: mujoco.MjModel, d: mujoco.MjData, tip: int) -> np.ndarray:
     return np.mean([d.geom_xpos[g] for g in geoms], axis=0)
 
 
-def jointed_limbs(m: mujoco.MjModel, root_body: int) -> tuple[list[tuple[list[int], list[int]]], list[tuple[list[int], int]]]:
+def jointed_limbs(
+    m: mujoco.MjModel, root_body: int, skip: frozenset[int] = frozenset()
+) -> tuple[list[tuple[list[int], list[int]]], list[tuple[list[int], int]]]:
     """The limbs hanging from the trunk, unclassified, and the spines passed through to reach them.
 
     Returns:
@@ -149,21 +155,21 @@ def jointed_limbs(m: mujoco.MjModel, root_body: int) -> tuple[list[tuple[list[in
     while pending:
         child = pending.pop(0)
         bodies = _subtree(m, child)
-        if not _hinges(m, bodies):
+        if not _hinges(m, bodies, skip):
             continue
-        spine, branch = _spine(m, child)
+        spine, branch = _spine(m, child, skip)
         if spine:
             spines.append((spine, branch))
-            pending += _branches(m, branch)
+            pending += _branches(m, branch, skip)
             continue
         raw.append((_main_chain(m, bodies), bodies))
     return raw, spines
 
 
-def limbs_of(m: mujoco.MjModel, d: mujoco.MjData, root_body: int) -> tuple[list[Limb], list[str]]:
+def limbs_of(m: mujoco.MjModel, d: mujoco.MjData, root_body: int, skip: frozenset[int] = frozenset()) -> tuple[list[Limb], list[str]]:
     """The jointed subtrees hanging from the trunk (:func:`trunk_bodies`), classified into legs, arms and head (``d`` at the stand pose)."""
     notes: list[str] = []
-    raw, spines = jointed_limbs(m, root_body)
+    raw, spines = jointed_limbs(m, root_body, skip)
     if len(raw) < 2:
         raise ConfigError(f"the root body {m.body(root_body).name!r} has {len(raw)} jointed limbs: no recognisable legs")
     lowest = [_lowest_z(m, d, bodies) for _, bodies in raw]
@@ -173,7 +179,7 @@ def limbs_of(m: mujoco.MjModel, d: mujoco.MjData, root_body: int) -> tuple[list[
     kinds: dict[int, str] = {i: "leg" for i in leg_ids}
     rest = [i for i in range(len(raw)) if i not in leg_ids]
     root_frame = d.xmat[root_body].reshape(3, 3)  # the stand frame's axes (columns) in world
-    anchor = {i: root_frame.T @ (d.xanchor[_hinges(m, raw[i][0])[0]] - root_pos) for i in range(len(raw))}
+    anchor = {i: root_frame.T @ (d.xanchor[_hinges(m, raw[i][0], skip)[0]] - root_pos) for i in range(len(raw))}
     # arms: the two most lateral of the rest, on opposite sides; head: the highest near the midline
     lateral = sorted(rest, key=lambda i: -abs(anchor[i][1]))
     arms = [i for i in lateral if abs(anchor[i][1]) > 0.02][:2]
@@ -188,15 +194,15 @@ def limbs_of(m: mujoco.MjModel, d: mujoco.MjData, root_body: int) -> tuple[list[
     for i, (chain, bodies) in enumerate(raw):
         kind = kinds.get(i, "extra")
         side = ("left" if anchor[i][1] > 0 else "right") if kind in ("leg", "arm") else ""
-        chain_joints = _hinges(m, chain)
+        chain_joints = _hinges(m, chain, skip)
         limbs.append(Limb(kind, side, tuple(chain_joints), tuple(bodies), int(m.jnt_bodyid[chain_joints[-1]])))
-        off_chain = [j for j in _hinges(m, bodies) if j not in chain_joints]
+        off_chain = [j for j in _hinges(m, bodies, skip) if j not in chain_joints]
         if off_chain:
             notes.append(f"{kind} {side}: joints off the main chain held as extra: {', '.join(m.joint(j).name for j in off_chain)}")
     for spine, branch in spines:
-        joints = _hinges(m, spine)
+        joints = _hinges(m, spine, skip)
         limbs.append(Limb("spine", "", tuple(joints), tuple(spine), branch))
-        notes.append(f"spine: {len(joints)} joints between the trunk and {m.body(branch).name!r} (where {len(_branches(m, branch))} limbs branch)")
+        notes.append(f"spine: {len(joints)} joints between the trunk and {m.body(branch).name!r} (where {len(_branches(m, branch, skip))} limbs branch)")
     legs = [lb for lb in limbs if lb.kind == "leg"]
     if len(legs) != 2 or legs[0].side == legs[1].side:
         raise ConfigError("no recognisable legs: the two lowest limbs are not a left and a right one")
@@ -451,7 +457,7 @@ def _mirror_disagreements(m: mujoco.MjModel, roles: list[JointRole]) -> list[str
     return notes
 
 
-def infer_roles(m: mujoco.MjModel, qpos_stand: np.ndarray, root_body: int) -> InferredRoles:
+def infer_roles(m: mujoco.MjModel, qpos_stand: np.ndarray, root_body: int, passive: tuple[str, ...] = ()) -> InferredRoles:
     """Infer every hinge joint's role, sign and neutral angle.
 
     Args:
@@ -465,7 +471,8 @@ def infer_roles(m: mujoco.MjModel, qpos_stand: np.ndarray, root_body: int) -> In
     d = mujoco.MjData(m)
     d.qpos[:] = qpos_stand
     mujoco.mj_kinematics(m, d)
-    limbs, notes = limbs_of(m, d, root_body)
+    skip = frozenset(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in passive)
+    limbs, notes = limbs_of(m, d, root_body, skip)
     frame = d.xmat[root_body].reshape(3, 3)  # columns: the stand frame's axes in world
     roles: list[JointRole] = []
     assigned: set[int] = set()
@@ -521,7 +528,7 @@ def infer_roles(m: mujoco.MjModel, qpos_stand: np.ndarray, root_body: int) -> In
             sign = 1 if float(axis @ ref) >= 0 else -1
             roles.append(JointRole(name, full, sign, float(q0)))
     for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and j not in assigned:
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and j not in assigned and j not in skip:
             roles.append(JointRole(m.joint(j).name, EXTRA, 1, 0.0))
             notes.append(f"{m.joint(j).name}: not on a limb of the root body: held (extra)")
     order = {m.joint(j).name: j for j in range(m.njnt)}

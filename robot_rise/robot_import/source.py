@@ -26,9 +26,9 @@ from xml.etree import ElementTree
 
 import mujoco
 
-from robot_rise.errors import ConfigError
+from robot_rise.errors import ConfigError, mujoco_reason
 
-__all__ = ["ModelSource", "read_model", "resolve_asset", "mujoco_reason", "model_kind", "PACKAGE_PATH_ENV"]
+__all__ = ["ModelSource", "read_model", "resolve_asset", "model_kind", "PACKAGE_PATH_ENV"]
 
 PACKAGE_PATH_ENV = "ROS_PACKAGE_PATH"
 _PACKAGE_MARKERS = ("package.xml", "manifest.xml")
@@ -53,16 +53,6 @@ class ModelSource:
     path: Path
     notes: tuple[str, ...]
     urdf_text: str = ""
-
-
-def mujoco_reason(error: BaseException) -> str:
-    """MuJoCo's message as one line: its reason (the first line) and the element it names."""
-    lines = [line.strip() for line in str(error).strip().splitlines() if line.strip()]
-    if not lines:
-        return type(error).__name__
-    reason = lines[0].removeprefix("Error: ").rstrip(".")
-    element = next((line for line in lines[1:] if line.lower().startswith(("element", "object"))), "")
-    return f"{reason} ({element})" if element and element not in reason else reason
 
 
 def model_kind(path: Path) -> str:

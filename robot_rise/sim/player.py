@@ -39,6 +39,7 @@ from robot_rise.posture import Posture
 from robot_rise.servo import ServoArrays, servo_arrays
 from robot_rise.sim.variants import ModelVariant, apply_to_model
 from robot_rise.trajectory import Trajectory
+from robot_rise.linkage import close_loops
 
 __all__ = ["Recording", "Player", "play", "DEFAULT_RECORD_HZ", "DEFAULT_HOLD_S"]
 
@@ -237,6 +238,8 @@ class Player:
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[:] = start.qpos(self.robot, self.index, m.qpos0)
+        if self.index.linkage is not None:  # the passive joints where the driven ones put them
+            close_loops(m, d, self.index.linkage)
         d.qvel[:] = 0.0
         d.ctrl[self.index.actuators] = start.joint_vector(self.robot.joint_names)
         mujoco.mj_forward(m, d)

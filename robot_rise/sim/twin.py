@@ -43,6 +43,7 @@ from robot_rise.constants import STAND_MAX_TILT_RAD, STAND_MIN_HEIGHT_FRACTION
 from robot_rise.errors import ConfigError
 from robot_rise.model import ModelIndex, Robot, compose, model_index
 from robot_rise.posture import Posture, posture_from_qpos, stand_posture
+from robot_rise.linkage import close_loops
 
 __all__ = ["ServoCommandLike", "TwinMotion", "TwinState", "TwinImuState", "MujocoTwin"]
 
@@ -174,6 +175,8 @@ class MujocoTwin:
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[:] = start.qpos(self.robot, self.index, m.qpos0)
+        if self.index.linkage is not None:  # the passive joints where the driven ones put them
+            close_loops(m, d, self.index.linkage)
         d.qvel[:] = 0.0
         self._goal = np.clip(start.joint_vector(self.robot.joint_names), self._ctrl_lo, self._ctrl_hi)
         self._powered[:] = self.hold_start
