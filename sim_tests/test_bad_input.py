@@ -103,3 +103,10 @@ def test_global_flags_may_follow_the_command() -> None:
     assert r.returncode == 0 and "robot op3" in r.stdout, r.stderr
     r = _run("robot", "show", "-v")
     assert r.returncode == 0, r.stderr
+
+
+def test_the_version_is_printed() -> None:
+    from importlib.metadata import version
+
+    r = _run("--version")
+    assert r.returncode == 0 and r.stdout.strip() == f"robot-rise {version('robot-rise')}"

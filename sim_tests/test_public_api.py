@@ -106,13 +106,13 @@ def test_the_readme_example_runs_and_its_trajectory_is_proven(tmp_path, monkeypa
     assert (tmp_path / "getup.json").exists()
 
 
-def test_the_readme_layout_names_every_module_and_nothing_that_is_gone():
-    """README's layout section matches the tree: every module and folder is named, each named one exists."""
+def test_the_developer_layout_names_every_module_and_nothing_that_is_gone():
+    """DEVELOPERS.md's layout section matches the tree: every module and folder is named, each named one exists."""
     import re
     from pathlib import Path
 
     root = Path(robot_rise.__file__).parent.parent
-    readme = (root / "README.md").read_text()
+    readme = (root / "DEVELOPERS.md").read_text()
     layout = readme[readme.index("## Layout"): readme.index("Data flows one way")]
     named = set(re.findall(r"`([\w/]+(?:\.py)?/?)`", layout))
     for pkg in ("robot_rise", "drivers"):
@@ -121,10 +121,10 @@ def test_the_readme_layout_names_every_module_and_nothing_that_is_gone():
                 continue
             rel = path.relative_to(root / pkg)
             # a module is named by its file name; a module inside a sub-sub-package by its folder
-            assert path.name in named or (len(rel.parts) > 2 and f"{rel.parts[-2]}/" in named), f"README layout misses {pkg}/{rel}"
+            assert path.name in named or (len(rel.parts) > 2 and f"{rel.parts[-2]}/" in named), f"DEVELOPERS.md layout misses {pkg}/{rel}"
     for name in named:
         if name.endswith(".py"):
-            assert list(root.glob(f"*/**/{name}")), f"README layout names {name}, which does not exist"
+            assert list(root.glob(f"*/**/{name}")), f"DEVELOPERS.md layout names {name}, which does not exist"
 
 
 def test_tests_import_public_names_only():

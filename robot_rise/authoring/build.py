@@ -17,7 +17,11 @@ import json
 import logging
 import shutil
 import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +34,9 @@ from robot_rise.library import LIBRARY_FORMAT, LYING_KINDS, Strategy, load_strat
 from robot_rise.model import Robot, load_robot
 from robot_rise.trajectory import read_trajectory
 
-__all__ = ["BuildReport", "build_library", "BUILD_REPORT_FORMAT"]
+__all__ = ["BuildReport", "build_library", "BUILD_REPORT_FORMAT", "PROGRESS_EVERY_S"]
+
+PROGRESS_EVERY_S = 30.0  # a build says what it is doing at least this often (it runs for minutes)
 
 BUILD_REPORT_FORMAT = "robot-rise/library-build@1"
 log = logging.getLogger(__name__)
@@ -100,8 +106,36 @@ def _author_turn_over(robot: Robot | str, turn: str, get_ups: list[tuple[dict, s
         return [], {turn: f"crashed: {type(e).__name__}: {e}"}
 
 
+@contextmanager
+def _heartbeat(progress: Callable[[str], None] | None, what: Callable[[], str]) -> Iterator[None]:
+    """Call ``progress`` every ``PROGRESS_EVERY_S`` with ``what()`` and the time so far, until the block ends."""
+    if progress is None:
+        yield
+        return
+    stop = threading.Event()
+    t0 = time.monotonic()
+
+    def beat() -> None:
+        while not stop.wait(PROGRESS_EVERY_S):
+            progress(f"  ... {what()} ({time.monotonic() - t0:.0f} s so far)")
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 def build_library(
-    robot: Robot, out_dir: Path | None = None, *, jobs: int = 1, names: list[str] | None = None, strategies: tuple[Strategy, ...] | None = None
+    robot: Robot,
+    out_dir: Path | None = None,
+    *,
+    jobs: int = 1,
+    names: list[str] | None = None,
+    strategies: tuple[Strategy, ...] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> BuildReport:
     """Adapt, time, prove and write every strategy for ``robot`` into its library directory.
 
@@ -111,6 +145,8 @@ def build_library(
         jobs: processes (strategies are authored in parallel).
         names: only these strategies (default: all).
         strategies: the strategies (default: the shipped ``configs/strategies``).
+        progress: called with one line per strategy started and finished, and at least every
+            ``PROGRESS_EVERY_S`` while one runs (the CLI prints them; None: silent).
 
     Raises:
         ConfigError: ``names`` names a strategy there is not.
@@ -136,20 +172,38 @@ def build_library(
     skipped: dict[str, str] = {}
     with tempfile.TemporaryDirectory(prefix=".build.", dir=out) as scratch_root:
         scratch = {s.name: Path(scratch_root) / s.name for s in chosen}
-        if strategies is not None or jobs <= 1:
-            for s in get_ups:
-                f: dict[str, str] = {}
-                for r in author_library(scratch[s.name], robot, names=[s.name], strategies=tuple(chosen), failures=f):
-                    rows[r["name"]] = r
-                failed |= f
-                log.info("%s: %s", s.name, "written" if s.name in rows else f"failed: {f.get(s.name)}")
-        else:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                futures = {s.name: pool.submit(_author_one, str(robot.directory), s.name, str(scratch[s.name])) for s in get_ups}
-                for name, fut in futures.items():
-                    got, f = fut.result()
-                    rows |= {r["name"]: r for r in got}
+        say = progress or (lambda line: None)
+        t_build = time.monotonic()
+
+        def outcome(name: str, f: dict[str, str], t0: float) -> None:
+            what = "proven, written" if name in rows else f"not proven: {f.get(name, '?')}"
+            say(f"{name}: {what} ({time.monotonic() - t0:.0f} s; build {time.monotonic() - t_build:.0f} s)")
+
+        running: list[str] = []
+        with _heartbeat(progress, lambda: "building " + ", ".join(running)):
+            if strategies is not None or jobs <= 1:
+                for k, s in enumerate(get_ups, start=1):
+                    say(f"[{k}/{len(get_ups)}] {s.name} ({s.lying}): adapting, timing and proving")
+                    running[:] = [s.name]
+                    t0 = time.monotonic()
+                    f: dict[str, str] = {}
+                    for r in author_library(scratch[s.name], robot, names=[s.name], strategies=tuple(chosen), failures=f):
+                        rows[r["name"]] = r
                     failed |= f
+                    outcome(s.name, f, t0)
+                    log.info("%s: %s", s.name, "written" if s.name in rows else f"failed: {f.get(s.name)}")
+            else:
+                say(f"{len(get_ups)} get-up strategies on {jobs} processes: {', '.join(s.name for s in get_ups)}")
+                with ProcessPoolExecutor(max_workers=jobs) as pool:
+                    t0 = time.monotonic()
+                    futures = {s.name: pool.submit(_author_one, str(robot.directory), s.name, str(scratch[s.name])) for s in get_ups}
+                    running[:] = list(futures)
+                    for name, fut in futures.items():
+                        got, f = fut.result()
+                        rows |= {r["name"]: r for r in got}
+                        failed |= f
+                        running.remove(name)
+                        outcome(name, f, t0)
         rebuilt = {s.name for s in chosen}
         kept = [r for r in before if r["name"] not in rebuilt and r.get("turn_over") not in rebuilt]
         have = [*rows.values(), *kept]
@@ -165,16 +219,21 @@ def build_library(
             else:
                 # a get-up of this build is still in its scratch directory, a kept one in the library's
                 tasks[turn.name] = [(r, str((scratch[r["name"]] if r["name"] in rows else out) / r["trajectory"])) for r in followers]
-        if strategies is not None or jobs <= 1:
-            done = {t: _author_turn_over(robot, t, g, str(scratch[t]), tuple(everything)) for t, g in tasks.items()}
-        else:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                futures = {t: pool.submit(_author_turn_over, str(robot.directory), t, g, str(scratch[t])) for t, g in tasks.items()}
-                done = {t: fut.result() for t, fut in futures.items()}
+        if tasks:
+            say(f"turn-overs onto a proven get-up: {', '.join(tasks)}")
+        running[:] = list(tasks)
+        with _heartbeat(progress, lambda: "building " + ", ".join(running)):
+            if strategies is not None or jobs <= 1:
+                done = {t: _author_turn_over(robot, t, g, str(scratch[t]), tuple(everything)) for t, g in tasks.items()}
+            else:
+                with ProcessPoolExecutor(max_workers=jobs) as pool:
+                    futures = {t: pool.submit(_author_turn_over, str(robot.directory), t, g, str(scratch[t])) for t, g in tasks.items()}
+                    done = {t: fut.result() for t, fut in futures.items()}
         for turn, (got, f) in done.items():
             if got:
                 rows[turn] = got[0]
             failed |= f
+            say(f"{turn}: " + (f"proven, written as {got[0]['name']}" if got else f"not proven: {f.get(turn, '?')}"))
             log.info("%s: %s", turn, f"written as {got[0]['name']}" if got else f"failed: {f.get(turn)}")
         for name, row in rows.items():
             for key in ("trajectory", "start"):

@@ -26,6 +26,15 @@ EXIT_FAILURE = 1  # the command ran but the answer is "no" (invalid posture, rob
 EXIT_ERROR = 2  # bad input or an error: nothing was produced
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version  # noqa: PLC0415
+
+    try:
+        return version("robot-rise")
+    except PackageNotFoundError:  # run from a checkout that is not installed
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level parser with every discovered sub-command."""
     parser = argparse.ArgumentParser(
@@ -33,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Plan, filter and execute get-up motions for Dynamixel humanoids.",
         epilog="Example: robot-rise sample --kind supine --n 5 --seed 1 --out postures/",
     )
+    parser.add_argument("--version", action="version", version=f"robot-rise {_version()}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logs")
     parser.add_argument("-v", "--verbose", action="store_true", help="show info logs")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -167,7 +167,9 @@ def _build(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     if args.jobs < 1:
         raise ConfigError("--jobs must be at least 1")
-    report = build_library(robot, args.out, jobs=args.jobs, names=args.names)
+    import sys
+
+    report = build_library(robot, args.out, jobs=args.jobs, names=args.names, progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(f"library of {robot.name}: {report.directory}")
     for row in report.written:
         print(f"  proven   {row['lying']:7s} {row['name']:26s} {row['duration_s']:6.2f} s")
