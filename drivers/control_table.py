@@ -29,6 +29,7 @@ __all__ = [
     "control_table",
     "model_for_number",
     "SUPPORTED_MODELS",
+    "SUPPORTED_MODELS_1",
     "EEPROM_END",
     "MEMORY_SIZE",
     "TICKS_PER_REV",
@@ -96,6 +97,8 @@ class Register:
         size: 1, 2 or 4 bytes (little endian).
         writable: RW (True) or R (False).
         signed: two's complement.
+        eeprom_end: first RAM address of the table it belongs to (64 on the X series, 24 on the
+            Protocol 1.0 models).
     """
 
     name: str
@@ -103,10 +106,11 @@ class Register:
     size: int
     writable: bool = True
     signed: bool = False
+    eeprom_end: int = EEPROM_END
 
     @property
     def eeprom(self) -> bool:
-        return self.address < EEPROM_END
+        return self.address < self.eeprom_end
 
     def encode(self, value: int) -> bytes:
         """Raw little-endian bytes of ``value`` (wrapped to the register width)."""
@@ -197,6 +201,15 @@ class ControlTable:
         fast_sync_read_min_firmware: first firmware version answering Fast Sync Read.
         stall_torque_nm: datasheet stall torque at 12 V [N m] (for the emulator's load model).
         no_load_speed_rad_s: datasheet no-load speed at 12 V [rad/s].
+        protocol: the Dynamixel protocol this table is spoken in (2.0, or 1.0 for the AX, RX
+            and MX (1.0 firmware) tables of :mod:`drivers.control_table1`).
+        center_ticks: position value of the shaft's zero (2048 on 4096-tick models, 512 on AX/RX).
+        max_ticks: highest position value (4095, or 1023 on AX/RX).
+        rad_per_tick: [rad] per position unit (2 pi / 4096; 300 deg / 1023 on AX/RX).
+        velocity_unit_rad_s: [rad/s] per velocity unit (0.229 rev/min on the X series).
+        bulk_read: the model answers BULK_READ (every 2.0 model; only the MX series on 1.0).
+        memory_size: bytes of the emulated memory image.
+        source: the e-manual page of the table.
     """
 
     model: str
@@ -208,6 +221,14 @@ class ControlTable:
     fast_sync_read_min_firmware: int = 45
     stall_torque_nm: float = 4.1
     no_load_speed_rad_s: float = 46 * 2 * math.pi / 60
+    protocol: float = 2.0
+    center_ticks: int = CENTER_TICKS
+    max_ticks: int = TICKS_PER_REV - 1
+    rad_per_tick: float = RAD_PER_TICK
+    velocity_unit_rad_s: float = VELOCITY_UNIT_RAD_S
+    bulk_read: bool = True
+    memory_size: int = MEMORY_SIZE
+    source: str = ""
     _by_address: Mapping[int, Register] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -232,8 +253,8 @@ class ControlTable:
         return self._by_address.get(address)
 
     def default_memory(self) -> bytearray:
-        """A full memory image (``MEMORY_SIZE`` bytes) holding the factory defaults."""
-        mem = bytearray(MEMORY_SIZE)
+        """A full memory image (``memory_size`` bytes) holding the factory defaults."""
+        mem = bytearray(self.memory_size)
         for name, value in self.defaults.items():
             reg = self.registers[name]
             mem[reg.address : reg.address + reg.size] = reg.encode(value)
@@ -368,24 +389,45 @@ _ALIASES = {"MX-28": "MX-28(2.0)", "MX-64": "MX-64(2.0)", "MX-106": "MX-106(2.0)
 
 SUPPORTED_MODELS: tuple[str, ...] = tuple(_TABLES)
 
+from drivers.control_table1 import ALIASES_1, TABLES_1  # noqa: E402  (the 1.0 tables build on Register above)
 
-def control_table(model: str) -> ControlTable:
-    """The :class:`ControlTable` of ``model`` (e.g. ``"XM430-W350"``).
+SUPPORTED_MODELS_1: tuple[str, ...] = tuple(TABLES_1)
+
+
+def control_table(model: str, protocol: float = 2.0) -> ControlTable:
+    """The :class:`ControlTable` of ``model`` (e.g. ``"XM430-W350"``) on a ``protocol`` bus.
+
+    On a Protocol 1.0 bus ``MX-28`` means the MX-28 with its 1.0 firmware (``MX-28(1.0)``), on
+    a 2.0 bus the 2.0 firmware; the AX and RX series speak 1.0 only, the X series 2.0 only here.
 
     Raises:
-        ControlTableError: unknown model (the message lists the supported ones).
+        ControlTableError: unknown model, or one that does not speak ``protocol`` (the message
+            lists the supported ones).
     """
+    if protocol == 1.0:
+        table = TABLES_1.get(ALIASES_1.get(model, model))
+        if table is not None:
+            return table
+        if _TABLES.get(_ALIASES.get(model, model)) is not None:
+            raise ControlTableError(f"servo model {model!r} is driven over Protocol 2.0 only",
+                                    hint="Protocol 1.0 models: " + ", ".join(SUPPORTED_MODELS_1)
+                                    + "; or set [bus] protocol = 2.0")
+        raise ControlTableError(f"unknown servo model {model!r}",
+                                hint="Protocol 1.0 models: " + ", ".join(SUPPORTED_MODELS_1))
     try:
         return _TABLES[_ALIASES.get(model, model)]
     except KeyError:
+        if model in TABLES_1 or model in ALIASES_1.values():
+            raise ControlTableError(f"servo model {model!r} speaks Protocol 1.0",
+                                    hint="set [bus] protocol = 1.0 in servos.toml") from None
         raise ControlTableError(
             f"unknown servo model {model!r}", hint="supported models: " + ", ".join(SUPPORTED_MODELS)
         ) from None
 
 
-def model_for_number(model_number: int) -> ControlTable | None:
-    """The table whose ``model_number`` matches, or ``None``."""
-    for table in _TABLES.values():
+def model_for_number(model_number: int, protocol: float = 2.0) -> ControlTable | None:
+    """The table of ``protocol`` whose ``model_number`` matches, or ``None``."""
+    for table in (TABLES_1 if protocol == 1.0 else _TABLES).values():
         if table.model_number == model_number:
             return table
     return None

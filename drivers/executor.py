@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from drivers.clock import MonotonicClock, cpu_wakeup_latency, realtime_scheduling
 from drivers.control_table import WATCHDOG_UNIT_S
 from drivers.errors import CommunicationError, SafetyError
-from drivers.group import GOAL_PWM, GOAL_PWM_SIZE, Feedback, ServoGroup
+from drivers.group import Feedback, ServoGroup
 from drivers.imu import Imu
 from drivers.safety import (
     ExpectedPositions,
@@ -467,6 +467,8 @@ class Executor:
         Raises:
             SafetyError: a watchdog has tripped (the servo refuses goals), or the rate is too low.
         """
+        if not self.group.has_watchdog:  # Protocol 1.0: the host stops the servos itself
+            return None
         units = self.group.read_each("bus_watchdog")
         tripped = sorted(sid for sid, u in units.items() if u < 0)
         if tripped:
@@ -483,10 +485,11 @@ class Executor:
         return timeout_s
 
     def _pwm_limits(self) -> dict[int, int]:
-        """Each servo's PWM Limit (the Goal PWM the RAM settings gave it): the LIMP ramp's start.
-        A servo that does not answer now gets its model's default."""
-        read = self.group.read_each("pwm_limit")
-        return {sp.id: read.get(sp.id, int(sp.table.defaults.get("pwm_limit", 0))) for sp in self.group.map.servos}
+        """Each servo's PWM Limit (the Goal PWM the RAM settings gave it; on 1.0 its Torque
+        Limit): the LIMP ramp's start. A servo that does not answer now gets its model's default."""
+        name = self.group.ramp_limit_register
+        read = self.group.read_each(name)
+        return {sp.id: read.get(sp.id, int(sp.table.defaults.get(name, 0))) for sp in self.group.map.servos}
 
     def _stop(self, fb: Feedback, faults: list[Fault], pwm_limits: dict[int, int], watchdog_s: float | None,
               hold_rad: FloatArray | None = None) -> tuple[RecoveryReport | None, list[str]]:
@@ -534,10 +537,11 @@ class Executor:
         step("holding the present posture", lambda: group.write_goals(np.where(ok, hold, 0.0), skip=skip))
         if limp:
             ids = list(pwm_limits)
+            ramp = group.ramp_register  # Goal PWM (2.0) or Torque Limit (1.0)
             try:
                 for row in limp_pwm_ramp(np.array([pwm_limits[sid] for sid in ids]), cfg.limp_s, dt):
                     step("the Goal PWM ramp", lambda row=row: group.write_each(
-                        GOAL_PWM, GOAL_PWM_SIZE, dict(zip(ids, row)), quarantined_too=True))
+                        ramp.address, ramp.size, dict(zip(ids, row)), quarantined_too=True))
                     step("the Goal PWM ramp", lambda: clock.sleep(dt))
             finally:
                 step("torque off", lambda: group.torque(False, quarantined_too=True))

@@ -125,6 +125,11 @@ class ServoGroup:
         reping_every: cycles between re-pings of quarantined servos.
     """
 
+    protocol = 2.0
+    has_watchdog = True  # the X series' Bus Watchdog (address 98)
+    ramp_register = _LAYOUT["goal_pwm"]  # what a LIMP stop ramps to 0
+    ramp_limit_register = "pwm_limit"  # where the ramp starts, per servo
+
     def __init__(self, bus: DynamixelBus, servo_map: ServoMap, *, fast_read: bool = False,
                  use_indirect: bool = True, quarantine_after: int = 2, reping_every: int = 10) -> None:
         for table in {s.table.model: s.table for s in servo_map.servos}.values():

@@ -1,4 +1,9 @@
-"""Connecting to a servo bus in one call: a real port, or an emulated bus from the servo map."""
+"""Connecting to a servo bus in one call: a real port, or an emulated bus from the servo map.
+
+The servo map's ``[bus] protocol`` picks the driver: :class:`~drivers.bus.DynamixelBus` and
+:class:`~drivers.group.ServoGroup` for 2.0, :class:`~drivers.bus1.DynamixelBus1` and
+:class:`~drivers.group1.ServoGroup1` for 1.0 (and :class:`~drivers.mockbus.MockBus1` emulates it).
+"""
 
 from __future__ import annotations
 
@@ -10,8 +15,10 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from drivers.bus import DynamixelBus
+from drivers.bus1 import DynamixelBus1
 from drivers.clock import Clock, MonotonicClock
 from drivers.group import ServoGroup
+from drivers.group1 import ServoGroup1
 from drivers.port import LatencyTimer, ensure_low_latency, open_port, request_low_latency
 from drivers.servo_map import ServoMap
 
@@ -31,7 +38,7 @@ _PTY_RX_MARGIN_S = 0.02  # [s] on a pseudo-terminal: the emulator process may be
 class Connection:
     """An open bus with its servo group (close it, or use it as a context manager)."""
 
-    group: ServoGroup
+    group: ServoGroup | ServoGroup1
     url: str
     latency: LatencyTimer
 
@@ -75,6 +82,13 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
     for s in servo_map.servos:
         q = (initial_rad or {}).get(s.joint, 0.0)
         init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
+    if servo_map.protocol == 1.0:
+        if imu is not None:
+            raise ValueError("the OpenCR (IMU) speaks Protocol 2.0; a Protocol 1.0 bus has none")
+        return mb.MockBus1({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
+                           faults=mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v),
+                           clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
+                           initial_position_ticks=init, return_delay_units=return_delay_units)
     return mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
                       faults=mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v),
                       clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
@@ -116,6 +130,11 @@ def connect(servo_map: ServoMap, port: str, *, baud_rate: int | None = None,
         latency = replace(latency, note=f"{latency.note}; {request_low_latency(serial_port)}")
     if rx_margin_s is None:
         rx_margin_s = _PTY_RX_MARGIN_S if os.path.realpath(port).startswith("/dev/pts/") else _RX_MARGIN_S
+    return_delay_s = servo_map.bus.return_delay_time_us * 1e-6 + 50e-6
+    if servo_map.protocol == 1.0:
+        bus1 = DynamixelBus1(serial_port, baud_rate=baud, clock=clock, rx_margin_s=rx_margin_s,
+                             return_delay_s=return_delay_s)
+        return Connection(ServoGroup1(bus1, servo_map), port, latency)
     bus = DynamixelBus(serial_port, baud_rate=baud, clock=clock, rx_margin_s=rx_margin_s,
-                       return_delay_s=servo_map.bus.return_delay_time_us * 1e-6 + 50e-6)
+                       return_delay_s=return_delay_s)
     return Connection(ServoGroup(bus, servo_map), port, latency)

@@ -104,9 +104,15 @@ def desired_eeprom(spec: ServoSpec, return_delay_units: int) -> dict[str, int]:
 def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = True) -> PreflightReport:
     """Check and configure the bus before any motion (see module docstring).
 
+    A Protocol 1.0 group is checked by :func:`drivers.startup1.preflight1` instead.
+
     Raises:
         PreflightError: a servo is missing, has the wrong model, or a setting cannot be written.
     """
+    if group.protocol == 1.0:
+        from drivers.startup1 import preflight1
+
+        return preflight1(group, configure=configure, require_all=require_all)
     bus, smap = group.bus, group.map
     found = bus.scan(smap.ids)
     missing = [i for i in smap.ids if i not in found]
@@ -245,7 +251,10 @@ def _check_goals_taken(group: ServoGroup, ticks: NDArray[np.int64]) -> None:
 
 
 def arm_watchdog(group: ServoGroup, timeout_s: float) -> int:
-    """Arm every servo's Bus Watchdog at ``timeout_s`` [s] (20 ms units, 1..127); returns units."""
+    """Arm every servo's Bus Watchdog at ``timeout_s`` [s] (20 ms units, 1..127); returns units
+    (0, nothing sent, on a bus without one: Protocol 1.0)."""
+    if not group.has_watchdog:
+        return 0
     units = max(1, min(127, int(round(timeout_s / WATCHDOG_UNIT_S))))
     group.write_all(BUS_WATCHDOG, 1, 0)  # clear a tripped state first
     group.write_all(BUS_WATCHDOG, 1, units)
@@ -253,6 +262,8 @@ def arm_watchdog(group: ServoGroup, timeout_s: float) -> int:
 
 
 def disarm_watchdog(group: ServoGroup) -> None:
+    if not group.has_watchdog:
+        return
     group.write_all(BUS_WATCHDOG, 1, 0)
 
 
@@ -262,7 +273,13 @@ def recover(group: ServoGroup, ids: list[int], *, attempts: int = 2, boot_wait_s
     goal = present, torque on. At most ``attempts`` tries per servo.
 
     Only ``ids`` are spoken to, for ``boot_wait_s`` and more: disarm the others' Bus Watchdog
-    first (:func:`disarm_watchdog`) or it trips (the executor's stop does so)."""
+    first (:func:`disarm_watchdog`) or it trips (the executor's stop does so).
+
+    A Protocol 1.0 group (no reboot instruction) is recovered by :func:`drivers.startup1.recover1`."""
+    if group.protocol == 1.0:
+        from drivers.startup1 import recover1
+
+        return recover1(group, ids, attempts=attempts, torque_on=torque_on)
     bus = group.bus
     recovered, failed, messages = [], [], []
     total = 0

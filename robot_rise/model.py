@@ -99,6 +99,8 @@ class Robot:
         passive_joints: hinges no servo drives, moved by the model's equality constraints (a
             four-bar knee's rod, a coupled neck joint; ``robot.toml`` ``passive``): solved by
             :func:`robot_rise.linkage.close_loops` wherever a posture becomes a qpos.
+        bus_protocol: the servos' Dynamixel protocol (servos.toml ``[bus] protocol``): an MX on
+            Protocol 1.0 firmware has its own gains (the catalog's ``MX-28(1.0)``).
     """
 
     name: str
@@ -119,6 +121,7 @@ class Robot:
     roles: RoleMap | None = None
     supply_voltage_v: float = SUPPLY_VOLTAGE_V
     passive_joints: tuple[str, ...] = ()
+    bus_protocol: float = 2.0
 
     @property
     def n_joints(self) -> int:
@@ -145,7 +148,7 @@ class Robot:
         # once: the catalog lookup stats two files per joint (a planning timer asked 120 times
         # per rise, 0.25 s of a guard's 1-2 s thinking: profile of 2026-12-03)
         extra = self.directory / ROBOT_SERVO_MODELS_FILE
-        return tuple(servo_datasheet(s.model, extra_catalog=extra) for s in self.servos)
+        return tuple(servo_datasheet(firmware_model(s.model, self.bus_protocol, extra), extra_catalog=extra) for s in self.servos)
 
     @cached_property
     def _stand(self) -> tuple[mujoco.MjModel, mujoco.MjData, ModelIndex]:
@@ -338,7 +341,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) < 0:
             raise ConfigError(f"{root / 'robot.toml'}: site {s!r} is not in {xml_path.name}")
 
-    servos, supply_v = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
+    servos, supply_v, protocol = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
     roles = _load_roles(root / "robot.toml", meta.get("roles"), joint_names)
 
     # Key qpos in the robot-alone model: root (7) then hinges in order (jnt_qposadr increasing).
@@ -364,6 +367,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         roles=roles,
         supply_voltage_v=supply_v,
         passive_joints=tuple(passive),
+        bus_protocol=protocol,
     )
 
 
@@ -399,15 +403,31 @@ def supply_voltage(value: object, where: str) -> float:
     return volts
 
 
+def firmware_model(model: str, protocol: float, extra_catalog: Path | None = None) -> str:
+    """The catalog entry of a servo model on a bus of ``protocol``: ``MX-28`` on Protocol 1.0 is
+    the catalog's ``MX-28(1.0)`` where there is one (another control table, other gain units)."""
+    if float(protocol) == 1.0 and not model.endswith(")"):
+        candidate = f"{model}(1.0)"
+        try:
+            servo_datasheet(candidate, extra_catalog=extra_catalog)
+            return candidate
+        except ConfigError:
+            return model
+    return model
+
+
 def _load_servos(
     path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str, extra_catalog: Path
-) -> tuple[tuple[ServoAssignment, ...], float]:
-    """The servo per joint, in joint order, and the supply voltage [V] of ``[bus]``."""
+) -> tuple[tuple[ServoAssignment, ...], float, float]:
+    """The servo per joint, in joint order, the supply voltage [V] and the protocol of ``[bus]``."""
     data = _read_toml(path, SERVOS_FORMAT)
     bus = data.get("bus", {})
     if not isinstance(bus, dict):
         raise ConfigError(f"{path}: [bus] must be a table")
     supply_v = supply_voltage(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V), f"{path}: [bus] supply_voltage_v")
+    protocol = bus.get("protocol", 2.0)
+    if isinstance(protocol, bool) or protocol not in (1, 1.0, 2, 2.0):
+        raise ConfigError(f"{path}: [bus] protocol must be 1.0 or 2.0, not {protocol!r}")
     rows = data.get("servo", [])
     by_joint: dict[str, ServoAssignment] = {}
     ids: set[int] = set()
@@ -441,7 +461,7 @@ def _load_servos(
     missing = [j for j in joint_names if j not in by_joint]
     if missing:
         raise ConfigError(f"{path}: no servo for joints {', '.join(missing)}")
-    return tuple(by_joint[j] for j in joint_names), supply_v
+    return tuple(by_joint[j] for j in joint_names), supply_v, float(protocol)
 
 
 @dataclass(frozen=True)
@@ -505,7 +525,7 @@ def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
         obstacle_geoms=ro(obstacles),
         root_body=root_body,
         geom_kind=ro(kind),
-        linkage=linkage_of(m, robot.passive_joints) if robot.passive_joints else None,
+        linkage=linkage_of(m, robot.passive_joints) if getattr(robot, "passive_joints", ()) else None,
     )
 
 

@@ -43,3 +43,26 @@ def test_that_export_csv_defaults_to_the_trajectory_name_and_refuses_a_missing_f
     err = capsys.readouterr().err
     assert "no such trajectory file" in err and "Traceback" not in err
     assert not (tmp_path / "nope.csv").exists()
+
+
+def test_ticks_per_servo_id_at_the_executors_rate_are_what_the_servo_map_makes_of_the_targets(tmp_path, capsys):
+    """Issue 42: the trajectory as the robot's servos see it (one column per servo ID, ticks)."""
+    from drivers import load_servo_map
+
+    path, *_ = _trajectory(tmp_path)
+    out = tmp_path / "ticks.csv"
+    assert main(["export-csv", str(path), "--units", "ticks", "--rate", "100", "--out", str(out)]) == 0
+    rows = list(csv.reader(out.open()))
+    robot = load_robot()
+    servo_map = load_servo_map(robot.directory / "servos.toml")
+    assert rows[0] == ["t", *(str(i) for i in servo_map.ids)]
+    assert len(rows) - 1 == 126  # 1.25 s at 100 Hz, both ends
+    t = np.array([float(r[0]) for r in rows[1:]])
+    assert np.allclose(np.diff(t), 0.01)
+    from robot_rise.trajectory import read_trajectory
+
+    tr = read_trajectory(path)
+    q = tr.sample(np.array([0.5]))[0]
+    expected = servo_map.to_ticks(q[[tr.joint_names.index(j) for j in servo_map.joint_names]])
+    assert [int(x) for x in rows[1 + 50][1:]] == [int(x) for x in expected]
+    assert "126 rows at 100 Hz x 20 servos [ticks]" in capsys.readouterr().out

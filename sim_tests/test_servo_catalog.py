@@ -24,6 +24,7 @@ from robot_rise.servo import (
 )
 
 MODELS = ("XM430-W350", "XM540-W270", "XH430-W350", "XH540-W270", "XL430-W250", "MX-28", "MX-64", "MX-106")
+PROTOCOL_1_MODELS = ("AX-12A", "AX-18A", "RX-28", "RX-64", "MX-28(1.0)", "MX-64(1.0)", "MX-106(1.0)")  # issue 43
 FIGURES = (
     "control_table_family",
     "resolution_ticks_per_rev",
@@ -132,7 +133,7 @@ def test_a_robot_catalog_adds_a_model_that_is_then_used(tmp_path: Path) -> None:
     assert (s.stall_torque_nm, s.no_load_speed_rad_s, s.position_p_gain) == (2.0, rpm(54), 700)
     assert servo_datasheet("TEST-1(2.0)", extra_catalog=extra) is s
     catalog = servo_catalog(extra)
-    assert set(MODELS) | {"TEST-1"} == set(catalog) and catalog.files[-1] == extra.resolve()
+    assert set(MODELS) | set(PROTOCOL_1_MODELS) | {"TEST-1"} == set(catalog) and catalog.files[-1] == extra.resolve()
     with pytest.raises(ConfigError, match="TEST-1"):
         servo_datasheet("TEST-1")  # not in the product's catalog
 

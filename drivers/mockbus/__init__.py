@@ -1,4 +1,5 @@
-"""Byte-level emulator of a Dynamixel Protocol 2.0 bus of X-series servos.
+"""Byte-level emulator of a Dynamixel Protocol 2.0 bus of X-series servos, and of a Protocol 1.0
+bus of AX, RX and MX (1.0 firmware) servos (:class:`MockBus1`).
 
 Importing this package registers the pyserial URL handler ``dxlsim://`` (see
 :mod:`drivers.mockbus.protocol_dxlsim`), so ``serial.serial_for_url("dxlsim://NAME")`` works.
@@ -12,15 +13,18 @@ from __future__ import annotations
 import serial
 
 from drivers.mockbus.emulator import BAUD_BY_INDEX, MockBus, Reply
+from drivers.mockbus.emulator1 import MockBus1
 from drivers.mockbus.faults import FaultInjector, ScheduledFault
 from drivers.mockbus.plant import JointPlant, KinematicPlant, Plant, ServoCommand, ServoFramePlant, ServoMotion
 from drivers.mockbus.protocol_dxlsim import attach, attached, detach, parse_ids
 from drivers.mockbus.pty_server import PtyServer, PtyServerProcess, spawn_pty_server
 from drivers.mockbus.emulated_servo import EmulatedServo, ThermalModel
+from drivers.mockbus.emulated_servo1 import EmulatedServo1
 
 __all__ = [
     "BAUD_BY_INDEX",
     "MockBus",
+    "MockBus1",
     "Reply",
     "FaultInjector",
     "ScheduledFault",
@@ -31,6 +35,7 @@ __all__ = [
     "ServoCommand",
     "ServoMotion",
     "EmulatedServo",
+    "EmulatedServo1",
     "ThermalModel",
     "attach",
     "attached",

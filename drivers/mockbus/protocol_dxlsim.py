@@ -6,7 +6,9 @@
 - ``ids=1-20`` (ranges and commas), ``model=XM430-W350``,
 - ``baud=1000000`` (bus baud rate; the port's own baud must match to be understood),
 - ``wire_timing=1`` (replies take their wire time), ``delay=0`` (Return Delay Time units),
-- ``fake_clock=1`` (deterministic time; sleeping advances it).
+- ``fake_clock=1`` (deterministic time; sleeping advances it),
+- ``protocol=1.0`` (a Protocol 1.0 bus, :class:`~drivers.mockbus.MockBus1`; ``model`` then
+  names a 1.0 model, default ``MX-28``).
 
 Reads honour the port timeout on the bus clock: with a fake clock a timeout simply advances
 time, so a silent servo costs no real time in tests.
@@ -96,8 +98,11 @@ class Serial(serial.SerialBase):
             from drivers.clock import FakeClock
 
             ids = parse_ids(opts.get("ids", "1"))
-            bus = MockBus.from_ids(
-                ids, opts.get("model", "XM430-W350"),
+            one = float(opts.get("protocol", "2.0")) == 1.0
+            if one:
+                from drivers.mockbus.emulator1 import MockBus1
+            bus = (MockBus1 if one else MockBus).from_ids(
+                ids, opts.get("model", "MX-28" if one else "XM430-W350"),
                 baud_rate=int(opts.get("baud", str(self._baudrate or 1_000_000))),
                 wire_timing=opts.get("wire_timing", "0") == "1",
                 return_delay_units=int(opts.get("delay", "0")),

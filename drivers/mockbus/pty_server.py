@@ -285,7 +285,8 @@ class PtyServerProcess:
 
 def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate: int = 1_000_000,
                      wire_timing: bool = True, return_delay_units: int = 0,
-                     rt_priority: int | None = None, startup_timeout_s: float = 20.0) -> PtyServerProcess:
+                     rt_priority: int | None = None, startup_timeout_s: float = 20.0,
+                     protocol: float = 2.0) -> PtyServerProcess:
     """Start ``python -m drivers.mockbus.pty_server`` in a child process; wait for its device.
 
     Args:
@@ -293,6 +294,7 @@ def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate
             (normal scheduling with a warning otherwise; see :attr:`PtyServerProcess.scheduling`).
             Real servos answer on time whatever the host does; an emulator at normal priority
             on a busy machine wakes up late and its lateness would be charged to the host.
+        protocol: 2.0 (X series) or 1.0 (:class:`~drivers.mockbus.MockBus1`: ``model`` a 1.0 model).
 
     Raises:
         RuntimeError: the server did not report a device in time.
@@ -302,6 +304,8 @@ def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate
            "--baud", str(baud_rate), "--delay", str(return_delay_units)]
     if wire_timing:
         cmd.append("--wire-timing")
+    if protocol != 2.0:
+        cmd += ["--protocol", str(protocol)]
     if rt_priority is not None:
         cmd += ["--rt-priority", str(rt_priority)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
@@ -320,7 +324,8 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - exerci
     p = argparse.ArgumentParser(prog="python -m drivers.mockbus",
                                 description="Serve an emulated Dynamixel bus on a pseudo-terminal.")
     p.add_argument("--ids", default="1-20", help="servo IDs, e.g. 1-20 or 1,3,5 (default 1-20)")
-    p.add_argument("--model", default="XM430-W350")
+    p.add_argument("--model", default=None, help="servo model (default XM430-W350, or MX-28 with --protocol 1.0)")
+    p.add_argument("--protocol", type=float, default=2.0, choices=[1.0, 2.0], help="Dynamixel protocol (default 2.0)")
     p.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate [bit/s]")
     p.add_argument("--wire-timing", action="store_true", help="replies take their wire time")
     p.add_argument("--delay", type=int, default=0, help="Return Delay Time (2 us units)")
@@ -331,8 +336,15 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - exerci
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
-    bus = MockBus.from_ids(parse_ids(args.ids), args.model, baud_rate=args.baud, clock=MonotonicClock(),
-                           wire_timing=args.wire_timing, return_delay_units=args.delay)
+    if args.protocol == 1.0:
+        from drivers.mockbus.emulator1 import MockBus1
+
+        bus: MockBus = MockBus1.from_ids(parse_ids(args.ids), args.model or "MX-28", baud_rate=args.baud,
+                                         clock=MonotonicClock(), wire_timing=args.wire_timing,
+                                         return_delay_units=args.delay)
+    else:
+        bus = MockBus.from_ids(parse_ids(args.ids), args.model or "XM430-W350", baud_rate=args.baud,
+                               clock=MonotonicClock(), wire_timing=args.wire_timing, return_delay_units=args.delay)
     server = PtyServer(bus, link=args.link)
     device = server.open()
     signal.signal(signal.SIGTERM, lambda *_: server.stop())

@@ -83,6 +83,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
     from drivers.servo_map import load_servo_map
     from drivers.session import connect, mock_url_for
     from drivers.startup import disarm_watchdog, engage, preflight
+    from drivers.startup1 import host_stop_guard
     from robot_rise.filter import execution_permit
 
     if traj.robot and traj.robot != robot.name:
@@ -156,14 +157,17 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
             if answer.strip().lower() not in ("y", "yes"):
                 print("aborted; nothing moved")
                 return 2
-        engage(conn.group, watchdog_s=WATCHDOG_S)
-        try:
-            rep = executor.run(traj.joint_names, traj.t, traj.q)
-        finally:
+        # a bus without a Bus Watchdog (Protocol 1.0): SIGTERM / SIGHUP stop by policy as Ctrl-C does,
+        # and an error escaping the run turns torque off on the way out
+        with host_stop_guard(conn.group):
+            engage(conn.group, watchdog_s=WATCHDOG_S)
             try:
-                disarm_watchdog(conn.group)
-            except CommunicationError as e:  # keep the run's own outcome; the stop already ran
-                print(f"warning: could not disarm the Bus Watchdog: {e}", file=sys.stderr)
+                rep = executor.run(traj.joint_names, traj.t, traj.q)
+            finally:
+                try:
+                    disarm_watchdog(conn.group)
+                except CommunicationError as e:  # keep the run's own outcome; the stop already ran
+                    print(f"warning: could not disarm the Bus Watchdog: {e}", file=sys.stderr)
     s = rep.stats
     print(f"cycles {s.cycles} at {1 / s.period_s:.0f} Hz; jitter p50 {s.jitter_p50_s * 1e3:.3f} ms, "
           f"p99 {s.jitter_p99_s * 1e3:.3f} ms, max {s.jitter_max_s * 1e3:.3f} ms; "

@@ -1,4 +1,4 @@
-"""robot-rise bench bus: Dynamixel bus figures against the emulator (wire timing on)."""
+"""robot-rise bench bus / bus1: Dynamixel bus figures against the emulator (wire timing on)."""
 
 from __future__ import annotations
 
@@ -27,6 +27,28 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
                    help="let CPUs enter deep idle states (default: hold the kernel's CPU wake-up latency at "
                         "0 us where permitted, as the executor does while streaming)")
     p.set_defaults(func=run)
+    p = bsub.add_parser("bus1", help="Protocol 1.0: cycles/s of a 20-servo bus vs the wire limit, host CPU per cycle",
+                        formatter_class=Formatter,
+                        epilog="example:\n  robot-rise bench bus1 --cycles 500\n"
+                               "  robot-rise bench bus1 --model AX-18A --transport inprocess")
+    p.add_argument("--cycles", type=int, default=500, help="back-to-back cycles (SYNC_WRITE goals + BULK_READ feedback)")
+    p.add_argument("--servos", type=int, default=20, help="servos on the bus (default 20)")
+    p.add_argument("--model", default="MX-28", help="Protocol 1.0 model (default MX-28: BULK_READ; AX/RX: a READ each)")
+    p.add_argument("--baud", type=int, default=1_000_000, help="baud rate [bit/s] (default 1000000)")
+    p.add_argument("--transport", choices=["pty", "inprocess"], default="pty",
+                   help="emulator in a child process on a pseudo-terminal (default) or in-process (dxlsim://)")
+    p.add_argument("--emulator-rt-priority", type=int, default=20, metavar="P",
+                   help="pty emulator under SCHED_FIFO priority P where permitted (default 20; 0: normal)")
+    p.set_defaults(func=run_bus1)
+
+
+def run_bus1(args: argparse.Namespace) -> int:
+    from drivers.cycle_rate import bench_protocol1, format_cycle_rate
+
+    r = bench_protocol1(n=args.servos, model=args.model, baud_rate=args.baud, cycles=args.cycles,
+                        transport=args.transport, emulator_rt_priority=args.emulator_rt_priority or None)
+    print(format_cycle_rate(r))
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ EPILOG = """examples:
   robot-rise servos scan --port /dev/pts/3      # in another terminal
   robot-rise mockbus serve --twin --scene flat  # servos moved by a MuJoCo simulation of the robot
   robot-rise mockbus serve --link /tmp/ttyDXL --baud 1000000 --duration 60
+  robot-rise mockbus serve --protocol 1.0       # Protocol 1.0: MX-28 (1.0 firmware) where the map's model has no 1.0
 The device behaves like a USB adapter: unmodified dynamixel-sdk (PortHandler("/dev/pts/3")) works.
 It has no latency-timer file and rejects the low-latency ioctl; the driver reports both and carries on.
 """
@@ -25,6 +26,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         formatter_class=Formatter, epilog=EPILOG)
     q.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3)")
     q.add_argument("--baud", type=int, help="bus baud rate [bit/s] (default: from servos.toml)")
+    q.add_argument("--protocol", type=float, choices=[1.0, 2.0],
+                   help="Dynamixel protocol of the emulated bus (default: servos.toml's [bus] protocol); a model "
+                        "that does not speak it is emulated as --servo-model")
+    q.add_argument("--servo-model", default=None, metavar="MODEL",
+                   help="with --protocol: the model for servos whose own does not speak it "
+                        "(default MX-28 on 1.0, XM430-W350 on 2.0)")
     q.add_argument("--no-wire-timing", action="store_true", help="answer at once instead of after the wire time")
     q.add_argument("--twin", action="store_true", help="servo positions come from a MuJoCo simulation of the robot")
     q.add_argument("--scene", default="flat", help="scene of the twin (default: flat)")
@@ -52,6 +59,13 @@ def run_serve(args: argparse.Namespace) -> int:
     smap = load_servo_map(robot.directory / "servos.toml")
     if args.baud:
         smap = dataclasses.replace(smap, bus=dataclasses.replace(smap.bus, baud_rate=args.baud))
+    if args.protocol is not None and args.protocol != smap.protocol:
+        from drivers.servo_map import with_protocol
+
+        smap, replaced = with_protocol(smap, args.protocol, args.servo_model)
+        if replaced:
+            print(f"note: {len(replaced)} servo(s) emulated as {replaced[0][1]} on Protocol {args.protocol:.1f} "
+                  f"(their model {replaced[0][0]} does not speak it)")
     start = read_posture(args.posture, robot) if args.posture else stand_posture(robot)
     twin = MujocoTwin(robot, args.scene, start=start) if args.twin else None
     bus = mock_bus_for(smap, initial_rad=start.joints, wire_timing=not args.no_wire_timing, plant=twin)
@@ -59,7 +73,8 @@ def run_serve(args: argparse.Namespace) -> int:
         raise RobotRiseError(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities are 1..99")
     with PtyServer(bus, link=args.link) as server, realtime_scheduling(args.rt_priority) as scheduling:
         device = server.device
-        print(f"mock bus on {device}: {len(smap)} servos ({robot.name}) at {smap.bus.baud_rate} bit/s"
+        print(f"mock bus on {device}: {len(smap)} servos ({robot.name}) at {smap.bus.baud_rate} bit/s, "
+              f"Protocol {smap.protocol:.1f}"
               + (f", physics twin in scene {args.scene}" if twin else "")
               + (f", link {args.link}" if args.link else "") + f"; {scheduling}")
         print(f"try: robot-rise servos scan --port {device}   (Ctrl-C stops the bus)", flush=True)

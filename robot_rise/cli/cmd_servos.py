@@ -84,7 +84,7 @@ def run_scan(args: argparse.Namespace) -> int:
     with conn:
         ids = range(0, 253) if args.all else smap.ids
         found = conn.bus.scan(ids)
-        print(f"port {conn.url} at {conn.bus.baud_rate} bit/s: {conn.latency.note}")
+        print(f"port {conn.url} at {conn.bus.baud_rate} bit/s, Protocol {smap.protocol:.1f}: {conn.latency.note}")
         for sid in sorted(set(ids) | set(found)):
             if sid not in found and sid not in smap.ids:
                 continue
@@ -93,11 +93,12 @@ def run_scan(args: argparse.Namespace) -> int:
             if r is None:
                 print(f"  id {sid:3d}  MISSING  (expected {expected.model} for {expected.joint})")  # type: ignore[union-attr]
                 continue
-            t = model_for_number(r.model_number)
+            t = model_for_number(r.model_number, smap.protocol)
             name = t.model if t else f"model {r.model_number}"
-            flag = "" if expected is None or expected.model == name else f"  WRONG MODEL (map: {expected.model})"
+            flag = "" if expected is None or expected.table.model == name else f"  WRONG MODEL (map: {expected.model})"
             joint = expected.joint if expected else "(not in map)"
-            alert = "  ALERT" if r.error & 0x80 else ""
+            # 2.0: the status alert bit; 1.0: the status packet's alarm bits themselves
+            alert = "  ALERT" if r.error & (0x80 if smap.protocol == 2.0 else 0x7F) else ""
             print(f"  id {sid:3d}  {name:12s} fw {r.firmware_version:3d}  {joint}{flag}{alert}")
         missing = [i for i in smap.ids if i not in found]
         print(f"{len(found)} servo(s) answered; {len(missing)} of the map missing")

@@ -15,7 +15,6 @@ import numpy as np
 
 from robot_rise.filter.config import FilterConfig
 from robot_rise.model import Robot
-from robot_rise.servo import servo_datasheet
 from robot_rise.sim.player import Recording
 from robot_rise.sim.standing import supported_on_feet
 
@@ -78,4 +77,4 @@ def find_violations(rec: Recording, config: FilterConfig, *, saturation_rad: flo
 
 def saturation_rad(robot: Robot) -> float:
     """The smallest saturation error of the robot's servos [rad] (the divergence floor of :func:`find_violations`)."""
-    return min(servo_datasheet(sv.model).saturation_error_rad() for sv in robot.servos)
+    return min(sheet.saturation_error_rad() for sheet in robot.servo_datasheets())
