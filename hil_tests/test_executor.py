@@ -559,6 +559,7 @@ def proven_get_up(tmp_path_factory: pytest.TempPathFactory):
     from robot_rise.model import load_robot
     from robot_rise.rise import rise
     from robot_rise.sampling import sample_lying
+    from robot_rise.seal import sealed
     from robot_rise.trajectory import write_trajectory
 
     robot = load_robot()
@@ -569,7 +570,7 @@ def proven_get_up(tmp_path_factory: pytest.TempPathFactory):
     rec, _, proof = prove(robot, traj, scene="flat")
     assert proof.proven, proof.problems
     predicted = predicted_positions(rec)  # no ensemble: the floor alone, the strictest watch
-    traj = traj.with_report(**proof.to_dict(), **{COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted})
+    traj = sealed(traj.with_report(**proof.to_dict(), **{COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted}))  # what was just proven
     path = tmp_path_factory.mktemp("get_up") / "rise.json"
     write_trajectory(path, traj)
     return robot, path, traj, PredictedPositions.from_dict(predicted)

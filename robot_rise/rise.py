@@ -12,6 +12,7 @@ the torque bound where it goes over: ``robot_rise.filter.stopped_before_torque_b
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import os
 import time
@@ -70,6 +71,7 @@ from robot_rise.posture import Posture, admit_posture
 from robot_rise.trajectory import Trajectory
 from robot_rise.sampling import classify_lying
 from robot_rise.validity import Looseness, ValidityChecker
+from robot_rise.seal import sealed
 
 __all__ = [
     "MORE_ITERATIONS",
@@ -281,6 +283,21 @@ def connection_room(context: RiseContext, connection: Connection, goal: Posture)
     return motion_room(connection.motion, tr.root, tr.t, tr.q[:, cols], connection.frame, goal, checker)
 
 
+def _sealing(fn: Callable[..., RiseResult]) -> Callable[..., RiseResult]:
+    """``rise``'s result with its trajectory sealed (robot_rise.seal): what was proven is bound to
+    its proof wherever rise returns, a retry's or a composed pass's included."""
+
+    @functools.wraps(fn)
+    def sealing_rise(*args: Any, **kwargs: Any) -> RiseResult:
+        result = fn(*args, **kwargs)
+        if result.trajectory is None:
+            return result
+        return dataclasses.replace(result, trajectory=sealed(result.trajectory))
+
+    return sealing_rise
+
+
+@_sealing
 def rise(
     robot: Robot,
     start: Posture,

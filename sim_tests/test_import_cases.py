@@ -255,10 +255,12 @@ def test_coupled_joints_follow_their_drivers_in_simulation(tmp_path: Path) -> No
 def test_a_servo_map_names_the_driven_joints_and_an_unmoved_joint_is_refused(tmp_path: Path) -> None:
     case = write_case("four_bar_knee", tmp_path / "src")
     spec = mujoco.MjSpec.from_file(str(case.model))
-    driven = [j.name for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_HINGE and "_knee_" not in j.name]
-    rows = "".join(f'\n[[servo]]\nid = {i + 1}\njoint = "{j}"\nmodel = "{SERVO}"\nmin = -0.5\nmax = 0.5\n' for i, j in enumerate(driven))
+    driven = [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_HINGE and "_knee_" not in j.name]
+    rows = "".join(
+        f'\n[[servo]]\nid = {i + 1}\njoint = "{j.name}"\nmodel = "{SERVO}"\nmin = {j.range[0]}\nmax = {j.range[1]}\n' for i, j in enumerate(driven)
+    )  # each joint's own range: the user's frame allows what the file says
     servos = tmp_path / "servos.toml"
-    servos.write_text(f'format = "robot-rise/servos@1"\nrobot = "four_bar"\n{rows}'.replace('joint = "l_knee"\nmodel = "XL430-W250"\nmin = -0.5', 'joint = "l_knee"\nmodel = "XL430-W250"\nmin = 0.0').replace('joint = "r_knee"\nmodel = "XL430-W250"\nmin = -0.5', 'joint = "r_knee"\nmodel = "XL430-W250"\nmin = 0.0').replace('max = 0.5\n', 'max = 0.9\n'))
+    servos.write_text(f'format = "robot-rise/servos@1"\nrobot = "four_bar"\n{rows}')
     robot = load_robot(import_robot(case.model, tmp_path / "ok", servos=servos).directory)
     assert len(robot.passive_joints) == 4 and len(robot.servos) == len(driven)
     servos.write_text(servos.read_text().replace('joint = "neck_yaw"', 'joint = "neck_yaw_not"'))

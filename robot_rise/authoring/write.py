@@ -57,6 +57,7 @@ from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.standing import StandVerdict, judge
 from robot_rise.validity import DEFAULT_CONTACT_TOLERANCE_M
 from robot_rise.trajectory import Trajectory, trajectory_from_dict, trajectory_to_dict, write_trajectory
+from robot_rise.seal import sealed
 
 __all__ = ["author_library", "settled_start", "prove_for_library", "write_motion", "motion_specs", "PROOF_SCENE", "with_proof", "Reproof", "reprove_library"]
 
@@ -86,7 +87,7 @@ def with_proof(robot: Robot, tr: Trajectory, *, scene: str = PROOF_SCENE) -> tup
     entries = {**proof.to_dict(), COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(rec, ensemble=recs)}
     report = {k: v for k, v in tr.report.items() if k not in _PROOF_KEYS or k in entries}
     report.update(entries)
-    return dataclasses.replace(tr, report=report), proof
+    return sealed(dataclasses.replace(tr, report=report)), proof
 
 
 @dataclass(frozen=True)
@@ -113,8 +114,9 @@ def reprove_library(directory: str | Path | None, robot: Robot, *, scene: str = 
     Per motion: the start posture (trajectory file and start file) and the rows up to
     ``LIMIT_CLAMP_TOLERANCE_RAD`` past a joint limit are clamped into it; the trajectory is
     replayed and its report's proof entries replaced (:func:`with_proof`); the files are
-    rewritten atomically in their own JSON layout, other rows and entries byte for byte, and only
-    when something changed. A motion that is not proven gets its failing proof written (the file
+    rewritten atomically in their own JSON layout, other entries byte for byte and the rows as
+    proven (conforming to the command limits may move one a micro-radian: the seal is of what
+    was proven), and only when something changed. A motion that is not proven gets its failing proof written (the file
     tells the truth; ``execute`` refuses it).
 
     Args:
@@ -130,7 +132,7 @@ def reprove_library(directory: str | Path | None, robot: Robot, *, scene: str = 
             tolerance past a limit.
         PostureError: a start posture lies further than the tolerance past a limit.
     """
-    lib = load_library(directory if directory is not None else robot_library_dir(robot))
+    lib = load_library(directory if directory is not None else robot_library_dir(robot), sealed_only=False)  # re-proving seals them
     index_path = lib.directory / "index.json"
     index_text = index_path.read_text()
     index = json.loads(index_text)
@@ -147,6 +149,8 @@ def reprove_library(directory: str | Path | None, robot: Robot, *, scene: str = 
         proven, proof = with_proof(robot, before, scene=scene)
         written = trajectory_to_dict(proven)
         obj["report"] = written["report"]
+        if written["q"] != obj["q"]:  # conformed rows (a micro-radian off): the file holds what was proven, as its seal says
+            obj["q"] = written["q"]
         if proven.t is not before.t:  # conformed: slower segments, same rows; the phase ends where its row went
             obj["t"] = written["t"]
             row["connect_until_s"] = round(float(np.interp(float(row["connect_until_s"]), before.t, proven.t)), 6)

@@ -106,23 +106,26 @@ _FLAG_RULES: dict[str, tuple[Callable[[float], bool], str]] = {
 _ACTION_DESTS = ("robot_command", "library_command", "bench", "servos_cmd", "mockbus_cmd")
 
 
-def _check_flag_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """A flag given a value that means nothing (a budget of 0, a width of nan) is a usage error (exit 2)."""
+def _check_flag_values(args: argparse.Namespace) -> str:
+    """Why a flag's value means nothing (a budget of 0, a width of nan), '' if none: a usage error (exit 2)."""
     for dest, (ok, what) in _FLAG_RULES.items():
         value = getattr(args, dest, None)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             continue
         if not ok(float(value)):
             command = " ".join(str(v) for k, v in vars(args).items() if k in ("command", *_ACTION_DESTS) and isinstance(v, str))
-            print(f"error: {command + ': ' if command else ''}argument --{dest.replace('_', '-')}: must be {what}, not {value!r}", file=sys.stderr)
-            raise SystemExit(EXIT_ERROR)
+            return f"{command + ': ' if command else ''}argument --{dest.replace('_', '-')}: must be {what}, not {value!r}"
+    return ""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the process exit code."""
     parser = build_parser()
     args = parser.parse_args(_globals_first(sys.argv[1:] if argv is None else argv))
-    _check_flag_values(parser, args)
+    bad_flag = _check_flag_values(args)
+    if bad_flag:
+        print(f"error: {bad_flag}", file=sys.stderr)
+        return EXIT_ERROR
     level = logging.DEBUG if args.debug else logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     if not getattr(args, "func", None):

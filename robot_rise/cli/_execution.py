@@ -91,7 +91,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
                              hint="pass --robot DIR of the robot it was made for")
     if config.twin and not config.mock:
         raise RobotRiseError("--twin needs --mock (the twin moves emulated servos)")
-    permit = execution_permit(traj.report, robot)
+    permit = execution_permit(traj.report, robot, traj)
     if not permit.allowed:
         if not config.allow_unproven:
             raise RobotRiseError(permit.reason, hint="run it through the dynamics filter, or pass --allow-unproven to run it anyway")

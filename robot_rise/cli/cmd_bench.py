@@ -103,6 +103,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--json", action="store_true", help="print every trial and the summary as JSON")
     add_robot_args(f, scene=False)
     f.set_defaults(func=run_live_faults)
+    t = bsub.add_parser("tamper", help="proven trajectories edited ten ways after their proof: each edit refused before the bus",
+                        formatter_class=Formatter,
+                        epilog="examples:\n  robot-rise bench tamper\n  robot-rise bench tamper out/rises/*.json --robot robots/mine")
+    t.add_argument("files", nargs="*", metavar="TRAJ", help="proven trajectory files (default: every motion of the robot's library)")
+    t.add_argument("--json", action="store_true", help="print JSON")
+    add_robot_args(t, scene=False)
+    t.set_defaults(func=run_tamper)
     import robot_rise.cli as cli_pkg
 
     for info in pkgutil.iter_modules(cli_pkg.__path__):
@@ -275,3 +282,35 @@ def _fault_rig_opener(args: argparse.Namespace) -> OpenRig:
                 mb.detach(name)  # the bus holds the twin: let both go
 
     return open_rig
+
+
+def run_tamper(args: argparse.Namespace) -> int:
+    import dataclasses
+    from pathlib import Path
+
+    from robot_rise.bench.tamper import TAMPERS, tamper_campaign
+    from robot_rise.library import load_library, robot_library_dir
+
+    robot = load_robot_arg(args)
+    files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
+    rows = tamper_campaign(robot, files)
+    edits = len(rows) * len(TAMPERS)
+    refused = sum(len(TAMPERS) - len(r.misses) for r in rows)
+    false_refusals = [r for r in rows if not r.untouched_allowed]
+    if args.json:
+        print_json({"rows": [dataclasses.asdict(r) for r in rows], "edits": edits, "refused": refused, "false_refusals": len(false_refusals)})
+    else:
+        for r in rows:
+            state = "untouched allowed" if r.untouched_allowed else f"UNTOUCHED REFUSED ({r.untouched_reason})"
+            misses = f"; ALLOWED: {', '.join(r.misses)}" if r.misses else ""
+            print(f"{Path(r.file).name:40s} {state}; {len(TAMPERS) - len(r.misses)}/{len(TAMPERS)} edits refused{misses}")
+        print(f"{refused} of {edits} edits refused ({100 * refused / max(edits, 1):.0f} %), {len(false_refusals)} of {len(rows)} untouched files refused")
+    return 0 if refused == edits and not false_refusals else 1
+
+
+def _library_files(library):  # type: ignore[no-untyped-def]
+    """(directory, trajectory file name) of every motion of a library (index order)."""
+    import json
+
+    index = json.loads((library.directory / "index.json").read_text())
+    return [(library.directory, row["trajectory"]) for row in index["motions"]]

@@ -170,7 +170,7 @@ class BusRobotIO:
 
         limits = self.limits
         try:
-            if self.allow_unproven and not execution_permit(trajectory.report, self.robot).allowed:
+            if self.allow_unproven and not execution_permit(trajectory.report, self.robot, trajectory).allowed:
                 expected, tilt, limits = None, None, self.unproven_limits
             else:
                 expected, tilt = self._permit(trajectory)
@@ -228,7 +228,7 @@ class BusRobotIO:
         from robot_rise.filter.prediction import expected_positions_of
         from drivers.executor import DEFAULT_RATE_HZ
 
-        permit = execution_permit(trajectory.report, self.robot)
+        permit = execution_permit(trajectory.report, self.robot, trajectory)
         if not permit.allowed:
             raise RobotRiseError(permit.reason)
         proven_limits = command_limits_of(trajectory.report)

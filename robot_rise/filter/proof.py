@@ -32,6 +32,7 @@ from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
 from robot_rise.sim.standing import StandVerdict, judge, supported_on_feet
 from robot_rise.trajectory import Trajectory
+from robot_rise.seal import seal_problem
 
 __all__ = ["Proof", "VariantVerdict", "Permit", "prove", "prove_with_violations", "execution_permit", "scene_digest"]
 
@@ -316,8 +317,9 @@ class Permit:
     reason: str = ""
 
 
-def execution_permit(report_or_proof: Proof | Mapping[str, Any], robot: Robot) -> Permit:
-    """May this trajectory run on ``robot``? Only if its proof says proven, on this robot's files.
+def execution_permit(report_or_proof: Proof | Mapping[str, Any], robot: Robot, trajectory: Trajectory | None = None) -> Permit:
+    """May this trajectory run on ``robot``? Only if its proof says proven, on this robot's files,
+    and (given the ``trajectory``) of exactly these targets: its seal holds (:mod:`robot_rise.seal`).
 
     Entries read: ``proven`` (true only if the judge passed within limits), ``robot`` (name),
     ``robot_digest`` (SHA-256 of the robot files, checked when present: an older proof may lack
@@ -326,6 +328,7 @@ def execution_permit(report_or_proof: Proof | Mapping[str, Any], robot: Robot) -
     Args:
         report_or_proof: the trajectory's report (as read from its file) or its Proof.
         robot: the robot it is to run on (its digest is computed only when the report has one).
+        trajectory: the trajectory itself: its seal is checked (what runs is what was proven).
     """
     report = report_or_proof.to_dict() if isinstance(report_or_proof, Proof) else report_or_proof
     if report.get("proven") is not True:
@@ -341,6 +344,10 @@ def execution_permit(report_or_proof: Proof | Mapping[str, Any], robot: Robot) -
         if digest != ours:
             return Permit(False, (f"the trajectory was proven on another version of robot {name!r}: the robot files "
                                   f"changed since (report.robot_digest {str(digest)[:12]}..., loaded robot {ours[:12]}...)"))
+    if trajectory is not None:
+        problem = seal_problem(trajectory)
+        if problem:
+            return Permit(False, f"the trajectory is not what was proven: {problem}")
     return Permit(True)
 
 

@@ -18,6 +18,7 @@ from robot_rise.model import Robot
 from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, read_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
+from robot_rise.seal import seal_problem
 
 __all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "MAX_NOISE_REPLAYS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
 
@@ -95,8 +96,12 @@ class MotionLibrary:
         raise FormatError(f"no motion {name!r} in {self.directory}; motions: {', '.join(self.names())}")
 
 
-def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name: str = "op3") -> MotionLibrary:
+def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name: str = "op3", sealed_only: bool = True) -> MotionLibrary:
     """Read a library directory (default: the shipped one) and validate every file it names.
+
+    A motion whose report says proven must carry its seal, and the seal must hold
+    (:mod:`robot_rise.seal`): a hand-edited motion is refused (``sealed_only=False`` reads it
+    anyway, for ``library prove`` to prove it again).
 
     Raises:
         FormatError: the index or a motion file is missing or malformed (the message names it).
@@ -130,6 +135,10 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
         if row["lying"] not in LYING_KINDS:
             raise FormatError(f"{where}: lying is {row['lying']!r}; expected one of {', '.join(LYING_KINDS)}")
         tr = read_trajectory(root / str(row["trajectory"]))
+        problem = seal_problem(tr) if sealed_only and tr.report.get("proven") is True else ""
+        if problem:
+            raise FormatError(f"{root / str(row['trajectory'])}: motion {name!r} is not what was proven: {problem}",
+                              hint="re-prove the library: robot-rise library prove --dir DIR (or build it again)")
         start = read_posture(root / str(row["start"]))
         if tr.root is None:
             raise FormatError(f"{root / str(row['trajectory'])}: library motions need the simulated 'root' pose per row")
