@@ -20,11 +20,12 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from drivers.clock import Clock, MonotonicClock
-from drivers.control_table import Register
+from drivers.control_table import EEPROM_END, Register
 from drivers.errors import CommunicationError, ProtocolError, ServoStatusError, ServoTimeout
 from drivers.protocol import (
     BROADCAST_ID,
     HEADER,
+    FrameReader,
     Instruction,
     PacketReader,
     bulk_read_params,
@@ -119,7 +120,21 @@ class DynamixelBus:
             the servo group isolates silent servos instead.
 
     Use as a context manager to close the port on exit.
+
+    The class attributes below name the codec; :class:`drivers.bus1.DynamixelBus1` sets its 1.0
+    counterparts (the instruction codes used here, PING to ACTION and SYNC_WRITE, are the same
+    on both protocols).
     """
+
+    _reader_class: type[FrameReader] = PacketReader
+    _min_status_bytes = status_length(0)  # [bytes] read on when a frame is cut off
+    _encode = staticmethod(encode_packet)
+    _read_params = staticmethod(read_params)
+    _write_params = staticmethod(write_params)
+    _sync_write_params = staticmethod(sync_write_params)
+    _describe_error = staticmethod(describe_error)
+    _refused_bits = 0x7F  # status error bits that mean the instruction was refused (the error number)
+    _eeprom_end = EEPROM_END  # addresses below it need torque off to be written
 
     def __init__(self, port: Transport, *, baud_rate: int, clock: Clock | None = None,
                  rx_margin_s: float = 0.004, return_delay_s: float = 0.0005, retries: int = 1) -> None:
@@ -198,18 +213,22 @@ class DynamixelBus:
         return data
 
     def _collect_frames(self, n_frames: int, expected_bytes: int,
-                        accept: Callable[[bytes], bool] | None = None) -> list[bytes]:
+                        accept: Callable[[bytes], bool] | None = None, *, first: bytes | None = None) -> list[bytes]:
         """Read until ``n_frames`` accepted frames or the timeout; corrupt frames are skipped.
 
         Frames ``accept`` rejects (a late reply to an earlier instruction) are dropped and
         counted in ``stats.stale_replies``; reading goes on for the frames we want.
+        ``first``: bytes already read for this reply (the first read is then not repeated).
         """
-        reader = PacketReader()
+        reader = self._reader_class()
         frames: list[bytes] = []
         timeout = self._reply_timeout(expected_bytes, n_frames)
         want = expected_bytes
-        for _ in range(6):  # one read normally; more after stuffing, stale or split replies
-            chunk = self._receive(max(want, 1), timeout)
+        for attempt in range(6):  # one read normally; more after stuffing, stale or split replies
+            if attempt == 0 and first is not None:
+                chunk = first
+            else:
+                chunk = self._receive(max(want, 1), timeout)
             if not chunk:
                 break
             reader.feed(chunk)
@@ -223,7 +242,7 @@ class DynamixelBus:
             if len(frames) >= n_frames:
                 break
             if want <= 0:
-                want = max(1, reader.pending and 11)
+                want = max(1, reader.pending and self._min_status_bytes)
                 timeout = self.rx_margin_s
         self.stats.corrupt_replies += reader.crc_errors
         if len(frames) < n_frames or reader.pending or reader.crc_errors or reader.skipped_bytes:
@@ -249,15 +268,26 @@ class DynamixelBus:
             p = decode_packet(f)
             return len(p.data) == reply_data_len or bool(p.error & 0x7F)
 
+        reply = self._request(frame, servo_id, status_length(reply_data_len), accept,
+                              retry=instruction not in _NOT_RETRIED)
+        p = decode_packet(reply)
+        return p.error, p.data
+
+    def _request(self, frame: bytes, servo_id: int, reply_bytes: int, accept: Callable[[bytes], bool], *,
+                 retry: bool = True) -> bytes:
+        """Send ``frame`` and return the first status frame ``accept`` takes (``reply_bytes`` long
+        when clean), with ``retries`` more attempts unless ``retry`` is False.
+
+        Raises:
+            ServoTimeout: no such frame arrived.
+        """
         for attempt in range(1 + self.retries):
             self._send(frame)
-            frames = self._collect_frames(1, status_length(reply_data_len), accept)
-            for f in frames:
-                p = decode_packet(f)
-                if p.is_status and p.servo_id == servo_id:
-                    return p.error, p.data
+            frames = self._collect_frames(1, reply_bytes, accept)
+            if frames:
+                return frames[0]
             self._note_timeout((servo_id,))
-            if instruction in _NOT_RETRIED:
+            if not retry:
                 break
             _log.debug("servo %d: no reply (attempt %d)", servo_id, attempt + 1)
         raise ServoTimeout([servo_id], frame)
@@ -291,11 +321,11 @@ class DynamixelBus:
 
     def read(self, servo_id: int, address: int, length: int) -> tuple[int, bytes]:
         """READ ``length`` bytes at ``address``; returns (error byte, data)."""
-        error, data = self.transact(servo_id, Instruction.READ, read_params(address, length),
+        error, data = self.transact(servo_id, Instruction.READ, self._read_params(address, length),
                                     reply_data_len=length)
-        if error & 0x7F:
+        if error & self._refused_bits:
             raise ServoStatusError(servo_id, error, f"read of {length} bytes at {address} refused: "
-                                   + describe_error(error))
+                                   + self._describe_error(error))
         if len(data) != length:
             raise CommunicationError(f"servo {servo_id}: read returned {len(data)} bytes, not {length}")
         return error, data
@@ -304,13 +334,15 @@ class DynamixelBus:
         """WRITE ``data`` at ``address`` and wait for the status; returns the error byte.
 
         Raises:
-            ServoStatusError: the servo refused the write (error number != 0).
+            ServoStatusError: the servo refused the write (2.0: error number != 0; 1.0: range,
+                angle limit, instruction error).
         """
-        error, _ = self.transact(servo_id, Instruction.WRITE, write_params(address, data))
-        if error & 0x7F:
+        error, _ = self.transact(servo_id, Instruction.WRITE, self._write_params(address, data))
+        if error & self._refused_bits:
+            eeprom_end = self._eeprom_end
             raise ServoStatusError(servo_id, error, f"write of {len(data)} bytes at {address} refused: "
-                                   + describe_error(error),
-                                   hint="EEPROM (address < 64) needs torque off" if address < 64 else "")
+                                   + self._describe_error(error),
+                                   hint=f"EEPROM (address < {eeprom_end}) needs torque off" if address < eeprom_end else "")
         return error
 
     def read_value(self, servo_id: int, register: Register) -> int:
@@ -333,7 +365,7 @@ class DynamixelBus:
 
     def action(self, servo_id: int = BROADCAST_ID) -> None:
         """ACTION: apply registered writes (broadcast by default, no reply)."""
-        self._send(encode_packet(servo_id, Instruction.ACTION))
+        self._send(self._encode(servo_id, Instruction.ACTION))
 
     # ---- group instructions --------------------------------------------------------------
     def sync_write(self, address: int, length: int, data_by_id: Mapping[int, bytes], *,
@@ -344,11 +376,11 @@ class DynamixelBus:
         instruction (one USB transfer for goal write + feedback read), or on :meth:`flush`.
         """
         if data_by_id:
-            self.sync_write_params(sync_write_params(address, length, data_by_id), defer=defer)
+            self.sync_write_params(self._sync_write_params(address, length, data_by_id), defer=defer)
 
     def sync_write_params(self, params: bytes, *, defer: bool = False) -> None:
         """SYNC_WRITE with prebuilt parameters (address, length, then id + data per servo)."""
-        frame = encode_packet(BROADCAST_ID, Instruction.SYNC_WRITE, params)
+        frame = self._encode(BROADCAST_ID, Instruction.SYNC_WRITE, params)
         if defer:
             self._tx_queue.append(frame)
         else:

@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 
 from drivers.bus import DynamixelBus, GroupRead, PingResult, Transport
 from drivers.clock import Clock
-from drivers.control_table import Register
+from drivers.control_table1 import EEPROM_END_1
 from drivers.errors import CommunicationError, ProtocolError, ServoStatusError, ServoTimeout
 from drivers.protocol1 import (
     BROADCAST_ID,
@@ -53,9 +53,21 @@ _PING_DATA = (0, 3)  # (address, length): Model Number (2) and Firmware Version 
 
 
 class DynamixelBus1(DynamixelBus):
-    """Protocol 1.0 master on one serial port (arguments as :class:`~drivers.bus.DynamixelBus`)."""
+    """Protocol 1.0 master on one serial port (arguments as :class:`~drivers.bus.DynamixelBus`).
+
+    READ, WRITE, ACTION and SYNC_WRITE are the 2.0 bus's, with the 1.0 codec below.
+    """
 
     protocol = 1.0
+    _reader_class = PacketReader1
+    _min_status_bytes = status_length1(0)
+    _encode = staticmethod(encode_instruction1)
+    _read_params = staticmethod(read_params1)
+    _write_params = staticmethod(write_params1)
+    _sync_write_params = staticmethod(sync_write_params1)
+    _describe_error = staticmethod(describe_error1)
+    _refused_bits = ErrorBits1.REFUSED
+    _eeprom_end = EEPROM_END_1
 
     def __init__(self, port: Transport, *, baud_rate: int, clock: Clock | None = None,
                  rx_margin_s: float = 0.004, return_delay_s: float = 0.0005, retries: int = 1) -> None:
@@ -64,40 +76,6 @@ class DynamixelBus1(DynamixelBus):
         self._bulk_cache: dict[tuple[tuple[int, int, int], ...], bytes] = {}  # request frames
 
     # ---- low level -----------------------------------------------------------------------
-    def _collect_frames1(self, n_frames: int, expected_bytes: int,
-                         accept: Callable[[bytes], bool] | None = None, *, first: bytes | None = None) -> list[bytes]:
-        """Read until ``n_frames`` accepted status frames or the timeout (as the 2.0 bus's
-        ``_collect_frames``): corrupt frames are skipped, rejected ones counted as stale.
-        ``first``: bytes already read for this reply (the first read is then not repeated)."""
-        reader = PacketReader1()
-        frames: list[bytes] = []
-        timeout = self._reply_timeout(expected_bytes, n_frames)
-        want = expected_bytes
-        for attempt in range(6):
-            if attempt == 0 and first is not None:
-                chunk = first
-            else:
-                chunk = self._receive(max(want, 1), timeout)
-            if not chunk:
-                break
-            reader.feed(chunk)
-            want -= len(chunk)
-            while (frame := reader.next_frame()) is not None:
-                if accept is None or accept(frame):
-                    frames.append(frame)
-                else:
-                    self.stats.stale_replies += 1
-                    want += len(frame)
-            if len(frames) >= n_frames:
-                break
-            if want <= 0:
-                want = max(1, reader.pending and 6)
-                timeout = self.rx_margin_s
-        self.stats.corrupt_replies += reader.crc_errors
-        if len(frames) < n_frames or reader.pending or reader.crc_errors or reader.skipped_bytes:
-            self._input_dirty = True
-        return frames
-
     def transact(self, servo_id: int, instruction: int, params: bytes = b"",
                  *, reply_data_len: int = 0) -> tuple[int, bytes]:
         """Send one 1.0 instruction to ``servo_id`` and wait for its status.
@@ -115,14 +93,8 @@ class DynamixelBus1(DynamixelBus):
             # may come without data
             return f[2] == servo_id and (f[3] - 2 == reply_data_len or bool(f[4] & ErrorBits1.REFUSED))
 
-        for attempt in range(1 + self.retries):
-            self._send(frame)
-            for f in self._collect_frames1(1, status_length1(reply_data_len), accept):
-                p = decode_status1(f)
-                return p.error, p.data
-            self._note_timeout((servo_id,))
-            _log.debug("servo %d: no reply (attempt %d)", servo_id, attempt + 1)
-        raise ServoTimeout([servo_id], frame)
+        p = decode_status1(self._request(frame, servo_id, status_length1(reply_data_len), accept))
+        return p.error, p.data
 
     # ---- single-servo instructions -------------------------------------------------------
     def ping(self, servo_id: int) -> PingResult | None:
@@ -138,41 +110,6 @@ class DynamixelBus1(DynamixelBus):
             return None
         model, fw = struct.unpack("<HB", data)
         return PingResult(servo_id, model, fw, (error | error2) & ErrorBits1.HARDWARE)
-
-    def read(self, servo_id: int, address: int, length: int) -> tuple[int, bytes]:
-        """READ ``length`` bytes at ``address``; returns (error byte, data).
-
-        Raises:
-            ServoStatusError: the servo refused the read (a refused-instruction bit is set).
-        """
-        error, data = self.transact(servo_id, Instruction1.READ, read_params1(address, length),
-                                    reply_data_len=length)
-        if error & ErrorBits1.REFUSED:
-            raise ServoStatusError(servo_id, error, f"read of {length} bytes at {address} refused: "
-                                   + describe_error1(error))
-        if len(data) != length:
-            raise CommunicationError(f"servo {servo_id}: read returned {len(data)} bytes, not {length}")
-        return error, data
-
-    def write(self, servo_id: int, address: int, data: bytes) -> int:
-        """WRITE ``data`` at ``address`` and wait for the status; returns the error byte.
-
-        Raises:
-            ServoStatusError: the servo refused the write (range, angle limit, instruction error).
-        """
-        error, _ = self.transact(servo_id, Instruction1.WRITE, write_params1(address, data))
-        if error & ErrorBits1.REFUSED:
-            raise ServoStatusError(servo_id, error, f"write of {len(data)} bytes at {address} refused: "
-                                   + describe_error1(error),
-                                   hint="EEPROM (address < 24) needs torque off" if address < 24 else "")
-        return error
-
-    def read_value(self, servo_id: int, register: Register) -> int:
-        _, data = self.read(servo_id, register.address, register.size)
-        return register.decode(data)
-
-    def write_value(self, servo_id: int, register: Register, value: int) -> int:
-        return self.write(servo_id, register.address, register.encode(value))
 
     def reboot(self, servo_id: int) -> int:
         """Protocol 1.0 has no REBOOT instruction (RESET would restore the factory ID and baud)."""
@@ -190,25 +127,7 @@ class DynamixelBus1(DynamixelBus):
             raise ServoStatusError(servo_id, error, "registered write refused: " + describe_error1(error))
         return error
 
-    def action(self, servo_id: int = BROADCAST_ID) -> None:
-        """ACTION: apply registered writes (broadcast by default, no reply)."""
-        self._send(encode_instruction1(servo_id, Instruction1.ACTION))
-
-    # ---- group instructions --------------------------------------------------------------
-    def sync_write(self, address: int, length: int, data_by_id: Mapping[int, bytes], *,
-                   defer: bool = False) -> None:
-        """SYNC_WRITE the same register span on several servos (no reply); ``defer`` as on 2.0."""
-        if data_by_id:
-            self.sync_write_params(sync_write_params1(address, length, data_by_id), defer=defer)
-
-    def sync_write_params(self, params: bytes, *, defer: bool = False) -> None:
-        """SYNC_WRITE with prebuilt parameters (address, length, then id + data per servo)."""
-        frame = encode_instruction1(BROADCAST_ID, Instruction1.SYNC_WRITE, params)
-        if defer:
-            self._tx_queue.append(frame)
-        else:
-            self._send(frame)
-
+    # ---- group instructions (SYNC_WRITE as on 2.0, with the 1.0 codec) -------------------
     def bulk_write(self, items: Sequence[tuple[int, int, bytes]]) -> None:
         raise ProtocolError("BULK_WRITE is a Protocol 2.0 instruction", hint="use sync_write or write")
 
@@ -272,7 +191,7 @@ class DynamixelBus1(DynamixelBus):
         fast = _split_in_order(raw, items) if len(raw) == expected else None
         if fast is not None:  # the usual case: every status, in list order, checksums right
             return fast
-        frames = self._collect_frames1(len(items), expected,
+        frames = self._collect_frames(len(items), expected,
                                        lambda f: f[2] in want and f[3] - 2 in (want[f[2]], 0), first=raw)
         data: dict[int, bytes] = {}
         errors: dict[int, int] = {}

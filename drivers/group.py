@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,7 +111,87 @@ class Feedback:
         return np.where(self.hardware_error != 0, self.hardware_error, self.error_byte & 0x80)
 
 
-class ServoGroup:
+def _empty_columns(n: int) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.int64],
+                                     NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """One read's per-servo columns before any reply, shape (n,) each: raw position and velocity
+    (0), effort (NaN), hardware error and status error bits (0), temperature and voltage (NaN),
+    valid (False)."""
+    return (np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan),
+            np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan), np.full(n, np.nan),
+            np.zeros(n, dtype=bool))
+
+
+class _ServoGroupBase:
+    """What the Protocol 2.0 and 1.0 groups share: the map, writes of one register on many
+    servos, and the quarantine of silent servos with their re-pings.
+
+    Args:
+        bus: the bus of the group's protocol.
+        servo_map: which IDs, joints, directions and limits.
+        check_layout: raises unless a table has every register the group uses.
+        quarantine_after: consecutive missing reads before a servo is quarantined.
+        reping_every: cycles between re-pings of quarantined servos.
+    """
+
+    def __init__(self, bus: DynamixelBus, servo_map: ServoMap, *, check_layout: Callable[[ControlTable], None],
+                 quarantine_after: int, reping_every: int) -> None:
+        for table in {s.table.model: s.table for s in servo_map.servos}.values():
+            check_layout(table)
+        self.bus = bus
+        self.map = servo_map
+        self.ids = servo_map.ids
+        self.quarantine_after = quarantine_after
+        self.reping_every = reping_every
+        self.consecutive_failures = np.zeros(len(self.ids), dtype=np.int64)
+        self.quarantined: set[int] = set()
+        self.readmitted: set[int] = set()  # servos back from quarantine since the last read
+        self._cycle = 0
+        self._index = {sid: k for k, sid in enumerate(self.ids)}
+
+    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None, *,
+                  quarantined_too: bool = False) -> None:
+        """Sync-write the same raw ``value`` to a register span on ``ids`` (``None``: every
+        servo; an empty sequence: none, nothing is sent). Quarantined servos are left out
+        unless ``quarantined_too`` (a stop: one whose replies are lost may still listen)."""
+        self.write_each(address, size, {sid: value for sid in (self.ids if ids is None else ids)},
+                        quarantined_too=quarantined_too)
+
+    def write_each(self, address: int, size: int, values: Mapping[int, int], *,
+                   quarantined_too: bool = False) -> None:
+        """Sync-write each servo's own raw value (``values``: ID -> value) to a register span."""
+        mask = (1 << (8 * size)) - 1
+        self.bus.sync_write(address, size, {sid: (int(v) & mask).to_bytes(size, "little") for sid, v in values.items()
+                                            if quarantined_too or sid not in self.quarantined})
+
+    def _start_read(self) -> None:
+        """Count the cycle; every ``reping_every`` cycles, ping the quarantined servos."""
+        self._cycle += 1
+        self.readmitted = set()
+        if self.quarantined and self._cycle % self.reping_every == 0:
+            self._reping()
+
+    def _count_failures(self, valid: NDArray[np.bool_], missing: Sequence[int]) -> None:
+        """Update the consecutive failures (``valid``: shape (n,)) and quarantine the ``missing``."""
+        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
+        self._quarantine(missing)
+
+    def _quarantine(self, missing: Sequence[int]) -> None:
+        for sid in missing:
+            k = self._index[sid]
+            if self.consecutive_failures[k] >= self.quarantine_after and sid not in self.quarantined:
+                _log.warning("servo %d (%s) quarantined after %d missed reads", sid,
+                             self.map.servos[k].joint, self.consecutive_failures[k])
+                self.quarantined.add(sid)
+
+    def _reping(self) -> None:
+        for sid in sorted(self.quarantined):
+            if self.bus.ping(sid) is not None:
+                _log.warning("servo %d answers again; re-admitted", sid)
+                self.quarantined.discard(sid)
+                self.readmitted.add(sid)
+
+
+class ServoGroup(_ServoGroupBase):
     """The servos of ``servo_map`` on ``bus``, spoken to in radians.
 
     Args:
@@ -132,20 +212,10 @@ class ServoGroup:
 
     def __init__(self, bus: DynamixelBus, servo_map: ServoMap, *, fast_read: bool = False,
                  use_indirect: bool = True, quarantine_after: int = 2, reping_every: int = 10) -> None:
-        for table in {s.table.model: s.table for s in servo_map.servos}.values():
-            _check_layout(table)
-        self.bus = bus
-        self.map = servo_map
-        self.ids = servo_map.ids
+        super().__init__(bus, servo_map, check_layout=_check_layout, quarantine_after=quarantine_after,
+                         reping_every=reping_every)
         self.fast_read = fast_read
         self.use_indirect = use_indirect
-        self.quarantine_after = quarantine_after
-        self.reping_every = reping_every
-        self.consecutive_failures = np.zeros(len(self.ids), dtype=np.int64)
-        self.quarantined: set[int] = set()
-        self.readmitted: set[int] = set()  # servos back from quarantine since the last read
-        self._cycle = 0
-        self._index = {sid: k for k, sid in enumerate(self.ids)}
         self._goal_reg = struct.Struct("<i")
         n = len(self.ids)
         self._ids_array = np.array(self.ids, dtype=np.uint8)
@@ -204,21 +274,6 @@ class ServoGroup:
                 if sid not in self.quarantined and sid not in skip}
         self.bus.sync_write(GOAL_POSITION, _LAYOUT["goal_position"].size, data, defer=defer)
         return ticks
-
-    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None, *,
-                  quarantined_too: bool = False) -> None:
-        """Sync-write the same raw ``value`` to a register span on ``ids`` (``None``: every
-        servo; an empty sequence: none, nothing is sent). Quarantined servos are left out
-        unless ``quarantined_too`` (a stop: one whose replies are lost may still listen)."""
-        self.write_each(address, size, {sid: value for sid in (self.ids if ids is None else ids)},
-                        quarantined_too=quarantined_too)
-
-    def write_each(self, address: int, size: int, values: Mapping[int, int], *,
-                   quarantined_too: bool = False) -> None:
-        """Sync-write each servo's own raw value (``values``: ID -> value) to a register span."""
-        mask = (1 << (8 * size)) - 1
-        self.bus.sync_write(address, size, {sid: (int(v) & mask).to_bytes(size, "little") for sid, v in values.items()
-                                            if quarantined_too or sid not in self.quarantined})
 
     def torque(self, on: bool, ids: Sequence[int] | None = None, *, quarantined_too: bool = False) -> None:
         """Torque Enable on all (``ids`` None) or on ``ids`` only (empty: none) by sync write."""
@@ -305,8 +360,7 @@ class ServoGroup:
                             np.ones(len(self.ids), dtype=bool))
         valid = (err & 0x7F) == 0
         hw = np.where(valid, blocks["hw"], 0).astype(np.int64)
-        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
-        self._quarantine([sid for sid, ok in zip(self.ids, valid) if not ok])
+        self._count_failures(valid, [sid for sid, ok in zip(self.ids, valid) if not ok])
         q = np.where(valid, self.map.to_radians(blocks["pos"]), np.nan)
         qd = np.where(valid, self.map.velocity_to_rad_s(blocks["vel"]), np.nan)
         eff = np.where(valid, blocks["cur"], np.nan)
@@ -316,10 +370,7 @@ class ServoGroup:
 
     def read_feedback(self) -> Feedback:
         """One group read of the feedback block of every active servo, in joint units."""
-        self._cycle += 1
-        self.readmitted = set()
-        if self.quarantined and self._cycle % self.reping_every == 0:
-            self._reping()
+        self._start_read()
         if self.fast_read and self.use_indirect and not self.quarantined:
             fb = self._fast_feedback()
             if fb is not None:
@@ -329,15 +380,7 @@ class ServoGroup:
         else:
             ids = [i for i in self.ids if i not in self.quarantined]
             r = self._raw_read(ids)
-        n = len(self.ids)
-        pos = np.zeros(n, dtype=np.int64)
-        vel = np.zeros(n, dtype=np.int64)
-        eff = np.full(n, np.nan)
-        hw = np.zeros(n, dtype=np.int64)
-        err = np.zeros(n, dtype=np.int64)
-        temp = np.full(n, np.nan)
-        volt = np.full(n, np.nan)
-        valid = np.zeros(n, dtype=bool)
+        pos, vel, eff, hw, err, temp, volt, valid = _empty_columns(len(self.ids))
         unpack = _FEEDBACK_STRUCT.unpack
         index = self._index
         for sid, d in r.data.items():
@@ -347,23 +390,7 @@ class ServoGroup:
             valid[k] = True
         for sid, e in r.errors.items():
             err[index[sid]] = e
-        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
-        self._quarantine(r.missing)
+        self._count_failures(valid, r.missing)
         q = np.where(valid, self.map.to_radians(pos), np.nan)
         qd = np.where(valid, self.map.velocity_to_rad_s(vel), np.nan)
         return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt * VOLTAGE_UNIT_V, valid)
-
-    def _quarantine(self, missing: Sequence[int]) -> None:
-        for sid in missing:
-            k = self._index[sid]
-            if self.consecutive_failures[k] >= self.quarantine_after and sid not in self.quarantined:
-                _log.warning("servo %d (%s) quarantined after %d missed reads", sid,
-                             self.map.servos[k].joint, self.consecutive_failures[k])
-                self.quarantined.add(sid)
-
-    def _reping(self) -> None:
-        for sid in sorted(self.quarantined):
-            if self.bus.ping(sid) is not None:
-                _log.warning("servo %d answers again; re-admitted", sid)
-                self.quarantined.discard(sid)
-                self.readmitted.add(sid)

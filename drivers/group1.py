@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,9 +33,9 @@ from numpy.typing import NDArray
 from drivers.bus import GroupRead
 from drivers.bus1 import DynamixelBus1
 from drivers.control_table import ControlTable, Register, control_table
-from drivers.control_table1 import DIRECTION_BIT
+from drivers.control_table1 import decode_signed_magnitude
 from drivers.errors import ControlTableError
-from drivers.group import Feedback
+from drivers.group import Feedback, _empty_columns, _ServoGroupBase
 from drivers.protocol import BITS_PER_BYTE
 from drivers.protocol1 import ErrorBits1
 from drivers.servo_map import ServoMap
@@ -66,12 +66,7 @@ def _check_layout(table: ControlTable) -> None:
                                     hint="a Protocol 1.0 servo group needs the AX/RX/MX (1.0) layout on every servo")
 
 
-def _signed(raw: int) -> int:
-    magnitude = raw & 0x3FF
-    return -magnitude if raw & DIRECTION_BIT else magnitude
-
-
-class ServoGroup1:
+class ServoGroup1(_ServoGroupBase):
     """The servos of a Protocol 1.0 ``servo_map`` on ``bus``, spoken to in radians.
 
     Args:
@@ -82,6 +77,7 @@ class ServoGroup1:
         fast_read, use_indirect: accepted for the 2.0 group's callers; always False on 1.0.
     """
 
+    bus: DynamixelBus1  # its read_each_servo and bulk_read are used here
     protocol = 1.0
     has_watchdog = False  # 1.0 firmware has no Bus Watchdog
     pipelinable = False
@@ -90,20 +86,10 @@ class ServoGroup1:
 
     def __init__(self, bus: DynamixelBus1, servo_map: ServoMap, *, fast_read: bool = False,
                  use_indirect: bool = False, quarantine_after: int = 2, reping_every: int = 10) -> None:
-        for table in {s.table.model: s.table for s in servo_map.servos}.values():
-            _check_layout(table)
-        self.bus = bus
-        self.map = servo_map
-        self.ids = servo_map.ids
+        super().__init__(bus, servo_map, check_layout=_check_layout, quarantine_after=quarantine_after,
+                         reping_every=reping_every)
         self.fast_read = False
         self.use_indirect = False
-        self.quarantine_after = quarantine_after
-        self.reping_every = reping_every
-        self.consecutive_failures = np.zeros(len(self.ids), dtype=np.int64)
-        self.quarantined: set[int] = set()
-        self.readmitted: set[int] = set()
-        self._cycle = 0
-        self._index = {sid: k for k, sid in enumerate(self.ids)}
         self.bulk_ids = tuple(s.id for s in servo_map.servos if s.table.bulk_read)
         self.single_ids = tuple(s.id for s in servo_map.servos if not s.table.bulk_read)
         tables = [s.table for s in servo_map.servos]
@@ -141,19 +127,6 @@ class ServoGroup1:
         self.bus.sync_write(GOAL_POSITION_1.address, GOAL_POSITION_1.size, data, defer=defer)
         return ticks
 
-    def write_all(self, address: int, size: int, value: int, ids: Sequence[int] | None = None, *,
-                  quarantined_too: bool = False) -> None:
-        """SYNC_WRITE the same raw ``value`` to a register span on ``ids`` (None: every servo)."""
-        self.write_each(address, size, {sid: value for sid in (self.ids if ids is None else ids)},
-                        quarantined_too=quarantined_too)
-
-    def write_each(self, address: int, size: int, values: Mapping[int, int], *,
-                   quarantined_too: bool = False) -> None:
-        """SYNC_WRITE each servo's own raw value (``values``: ID -> value) to a register span."""
-        mask = (1 << (8 * size)) - 1
-        self.bus.sync_write(address, size, {sid: (int(v) & mask).to_bytes(size, "little") for sid, v in values.items()
-                                            if quarantined_too or sid not in self.quarantined})
-
     def torque(self, on: bool, ids: Sequence[int] | None = None, *, quarantined_too: bool = False) -> None:
         """Torque Enable on all (``ids`` None) or on ``ids`` only (empty: none) by SYNC_WRITE."""
         self.write_all(TORQUE_ENABLE_1.address, TORQUE_ENABLE_1.size, int(on), ids, quarantined_too=quarantined_too)
@@ -185,48 +158,22 @@ class ServoGroup1:
 
     def read_feedback(self) -> Feedback:
         """One group read of the feedback block of every active servo, in joint units."""
-        self._cycle += 1
-        self.readmitted = set()
-        if self.quarantined and self._cycle % self.reping_every == 0:
-            self._reping()
+        self._start_read()
         r = self._raw_read()
-        n = len(self.ids)
-        pos = np.zeros(n, dtype=np.int64)
-        vel = np.zeros(n, dtype=np.int64)
-        eff = np.full(n, np.nan)
-        hw = np.zeros(n, dtype=np.int64)
-        err = np.zeros(n, dtype=np.int64)
-        temp = np.full(n, np.nan)
-        volt = np.full(n, np.nan)
-        valid = np.zeros(n, dtype=bool)
+        pos, vel, eff, hw, err, temp, volt, valid = _empty_columns(len(self.ids))
         unpack = _FEEDBACK_STRUCT.unpack
+        signed = decode_signed_magnitude
         index = self._index
         for sid, d in r.data.items():
             k = index[sid]
             p, v, load, u, t = unpack(d)
-            pos[k], vel[k], eff[k], volt[k], temp[k] = p, _signed(v), _signed(load), u, t
+            pos[k], vel[k], eff[k], volt[k], temp[k] = p, signed(v), signed(load), u, t
             valid[k] = True
         for sid, e in r.errors.items():
             k = index[sid]
             err[k] = e
             hw[k] = e & ErrorBits1.HARDWARE
-        self.consecutive_failures = np.where(valid, 0, self.consecutive_failures + 1)
-        self._quarantine(r.missing)
+        self._count_failures(valid, r.missing)
         q = np.where(valid, self.map.to_radians(pos), np.nan)
         qd = np.where(valid, vel * self._velocity_scale, np.nan)
         return Feedback(self.bus.clock.now(), q, qd, eff, hw, err, temp, volt * 0.1, valid)
-
-    def _quarantine(self, missing: Sequence[int]) -> None:
-        for sid in missing:
-            k = self._index[sid]
-            if self.consecutive_failures[k] >= self.quarantine_after and sid not in self.quarantined:
-                _log.warning("servo %d (%s) quarantined after %d missed reads", sid,
-                             self.map.servos[k].joint, self.consecutive_failures[k])
-                self.quarantined.add(sid)
-
-    def _reping(self) -> None:
-        for sid in sorted(self.quarantined):
-            if self.bus.ping(sid) is not None:
-                _log.warning("servo %d answers again; re-admitted", sid)
-                self.quarantined.discard(sid)
-                self.readmitted.add(sid)

@@ -38,6 +38,7 @@ __all__ = [
     "encode_packet",
     "decode_packet",
     "encode_status",
+    "FrameReader",
     "PacketReader",
     "read_params",
     "write_params",
@@ -220,13 +221,20 @@ def decode_packet(frame: bytes) -> Packet:
     return Packet(frame[4], body[0], body[1:])
 
 
-class PacketReader:
-    """Incremental frame finder over a byte stream (used by the emulator and the host).
+class FrameReader:
+    """Incremental frame finder over a byte stream, for the codecs of both protocols.
 
-    Garbage before a header is skipped; a frame with a bad CRC is dropped and counted.
+    Garbage before a header is skipped; a frame that fails its check is dropped and counted
+    (``crc_errors``) and the search resumes one byte later. A subclass says what differs:
+    ``_HEADER`` (what a frame starts with), ``_PREFIX`` (bytes before those the length field
+    counts), ``_MIN_LENGTH``, :meth:`_length` and :meth:`_intact`.
     """
 
-    def __init__(self, *, max_length: int = 1024) -> None:
+    _HEADER: bytes
+    _PREFIX: int
+    _MIN_LENGTH: int
+
+    def __init__(self, *, max_length: int) -> None:
         self._buf = bytearray()
         self._max_length = max_length
         self.crc_errors = 0
@@ -242,39 +250,66 @@ class PacketReader:
     def pending(self) -> int:
         return len(self._buf)
 
+    def _length(self, buf: bytearray) -> int:
+        """The length field of the frame at the start of ``buf``, or -1 if none can start there."""
+        raise NotImplementedError
+
+    def _intact(self, frame: bytes) -> bool:
+        """``frame``'s checksum or CRC is right."""
+        raise NotImplementedError
+
     def next_frame(self) -> bytes | None:
-        """Return the next complete, CRC-valid raw frame, or ``None`` if more bytes are needed."""
-        buf = self._buf
+        """Return the next complete, intact raw frame, or ``None`` if more bytes are needed."""
+        buf, header = self._buf, self._HEADER
         while True:
-            start = buf.find(HEADER[:3])
+            start = buf.find(header)
             if start < 0:
-                keep = 2 if buf.endswith(b"\xff\xff") else 1 if buf.endswith(b"\xff") else 0
+                keep = len(header) - 1  # a header cut off at the end of the buffer is kept
+                while keep and not buf.endswith(header[:keep]):
+                    keep -= 1
                 self.skipped_bytes += len(buf) - keep
                 del buf[: len(buf) - keep]
                 return None
             if start:
                 self.skipped_bytes += start
                 del buf[:start]
-            if len(buf) < 7:
+            if len(buf) < self._PREFIX:
                 return None
-            if buf[3] != 0x00:  # reserved byte must be 0 (0xFD would be stuffing)
+            length = self._length(buf)
+            if length < self._MIN_LENGTH or length > self._max_length:
                 self.skipped_bytes += 1
                 del buf[:1]
                 continue
-            length = buf[5] | (buf[6] << 8)
-            if length < 3 or length > self._max_length:
-                self.skipped_bytes += 1
-                del buf[:1]
-                continue
-            if len(buf) < 7 + length:
+            end = self._PREFIX + length
+            if len(buf) < end:
                 return None
-            frame = bytes(buf[: 7 + length])
-            if crc16(frame[:-2]) != (frame[-2] | (frame[-1] << 8)):
+            frame = bytes(buf[:end])
+            if not self._intact(frame):
                 self.crc_errors += 1
                 del buf[:1]
                 continue
-            del buf[: 7 + length]
+            del buf[:end]
             return frame
+
+
+class PacketReader(FrameReader):
+    """Incremental Protocol 2.0 frame finder (used by the emulator and the host); a frame with a
+    bad CRC is dropped and counted."""
+
+    _HEADER = HEADER[:3]
+    _PREFIX = 7  # FF FF FD 00 ID LEN_L LEN_H
+    _MIN_LENGTH = 3  # INST + CRC
+
+    def __init__(self, *, max_length: int = 1024) -> None:
+        super().__init__(max_length=max_length)
+
+    def _length(self, buf: bytearray) -> int:
+        if buf[3] != 0x00:  # reserved byte must be 0 (0xFD would be stuffing)
+            return -1
+        return buf[5] | (buf[6] << 8)
+
+    def _intact(self, frame: bytes) -> bool:
+        return crc16(frame[:-2]) == (frame[-2] | (frame[-1] << 8))
 
     def next_packet(self) -> Packet | None:
         """Like :meth:`next_frame` but decoded (stuffing removed)."""
@@ -302,7 +337,12 @@ def sync_read_params(address: int, length: int, ids: Sequence[int]) -> bytes:
 
 def sync_write_params(address: int, length: int, data_by_id: Mapping[int, bytes]) -> bytes:
     """SYNC_WRITE parameters; every data block must be ``length`` bytes."""
-    out = bytearray(struct.pack("<HH", address, length))
+    return struct.pack("<HH", address, length) + _sync_write_blocks(length, data_by_id)
+
+
+def _sync_write_blocks(length: int, data_by_id: Mapping[int, bytes]) -> bytes:
+    """The per-servo part of SYNC_WRITE parameters, the same on Protocol 1.0: ID, then data."""
+    out = bytearray()
     for servo_id, data in data_by_id.items():
         if len(data) != length:
             raise ProtocolError(f"sync write data for id {servo_id} is {len(data)} bytes, not {length}")

@@ -28,7 +28,7 @@ import enum
 from collections.abc import Iterable, Mapping
 
 from drivers.errors import ProtocolError
-from drivers.protocol import BITS_PER_BYTE, Instruction, Packet
+from drivers.protocol import FrameReader, Instruction, Packet, _sync_write_blocks, wire_time_s  # wire_time_s re-exported
 
 __all__ = [
     "HEADER1",
@@ -163,62 +163,28 @@ def decode_status1(frame: bytes) -> Packet:
     return Packet(frame[2], Instruction.STATUS, bytes(frame[4:-1]))
 
 
-class PacketReader1:
+class PacketReader1(FrameReader):
     """Incremental frame finder over a Protocol 1.0 byte stream.
 
-    Garbage before a header is skipped; a frame with a bad checksum is dropped and counted (and
-    the search resumes one byte later, as a servo resynchronises).
+    Garbage before a header is skipped; a frame with a bad checksum is dropped and counted in
+    ``crc_errors`` (the 2.0 reader's name), and the search resumes one byte later, as a servo
+    resynchronises.
     """
 
+    _HEADER = HEADER1
+    _PREFIX = 4  # FF FF ID LEN
+    _MIN_LENGTH = 2  # INST (or error) + CHECKSUM
+
     def __init__(self, *, max_length: int = _MAX_LENGTH) -> None:
-        self._buf = bytearray()
-        self._max_length = max_length
-        self.crc_errors = 0  # checksum errors (same name as the 2.0 reader's counter)
-        self.skipped_bytes = 0
+        super().__init__(max_length=max_length)
 
-    def feed(self, data: bytes) -> None:
-        self._buf += data
+    def _length(self, buf: bytearray) -> int:
+        if buf[2] == 0xFF:  # FF FF FF: the header starts one byte later
+            return -1
+        return buf[3]
 
-    def clear(self) -> None:
-        self._buf.clear()
-
-    @property
-    def pending(self) -> int:
-        return len(self._buf)
-
-    def next_frame(self) -> bytes | None:
-        """The next complete, checksum-valid raw frame, or ``None`` if more bytes are needed."""
-        buf = self._buf
-        while True:
-            start = buf.find(HEADER1)
-            if start < 0:
-                keep = 1 if buf.endswith(b"\xff") else 0
-                self.skipped_bytes += len(buf) - keep
-                del buf[: len(buf) - keep]
-                return None
-            if start:
-                self.skipped_bytes += start
-                del buf[:start]
-            if len(buf) < 4:
-                return None
-            if buf[2] == 0xFF:  # FF FF FF: the header starts one byte later
-                self.skipped_bytes += 1
-                del buf[:1]
-                continue
-            length = buf[3]
-            if length < 2 or length > self._max_length:
-                self.skipped_bytes += 1
-                del buf[:1]
-                continue
-            if len(buf) < 4 + length:
-                return None
-            frame = bytes(buf[: 4 + length])
-            if checksum(frame[2:-1]) != frame[-1]:
-                self.crc_errors += 1
-                del buf[:1]
-                continue
-            del buf[: 4 + length]
-            return frame
+    def _intact(self, frame: bytes) -> bool:
+        return checksum(frame[2:-1]) == frame[-1]
 
 
 # ---- parameter layouts (little endian, one-byte addresses) -------------------------------
@@ -244,13 +210,7 @@ def write_params1(address: int, data: bytes) -> bytes:
 
 def sync_write_params1(address: int, length: int, data_by_id: Mapping[int, bytes]) -> bytes:
     """SYNC_WRITE parameters; every data block must be ``length`` bytes."""
-    out = bytearray((_address(address), length))
-    for servo_id, data in data_by_id.items():
-        if len(data) != length:
-            raise ProtocolError(f"sync write data for id {servo_id} is {len(data)} bytes, not {length}")
-        out.append(servo_id)
-        out += data
-    return bytes(out)
+    return bytes((_address(address), length)) + _sync_write_blocks(length, data_by_id)
 
 
 def bulk_read_params1(items: Iterable[tuple[int, int, int]]) -> bytes:
@@ -280,8 +240,3 @@ def instruction_length1(n_params: int) -> int:
 def status_length1(n_data: int) -> int:
     """Bytes on the wire of a status packet carrying ``n_data`` data bytes."""
     return 6 + n_data
-
-
-def wire_time_s(n_bytes: int, baud_rate: int) -> float:
-    """Time in [s] to send ``n_bytes`` at ``baud_rate`` [bit/s] with 10 bits per byte."""
-    return n_bytes * BITS_PER_BYTE / baud_rate

@@ -15,18 +15,22 @@ re-apply the RAM settings, goal = present, torque on.
 from __future__ import annotations
 
 import logging
-import struct
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.bus import PingResult
-from drivers.control_table import WATCHDOG_UNIT_S, HardwareErrorBits, model_for_number
+from drivers.bus import DynamixelBus, PingResult
+from drivers.control_table import WATCHDOG_UNIT_S, ControlTable, HardwareErrorBits, model_for_number
 from drivers.errors import CommunicationError, PreflightError, SafetyError, ServoStatusError
-from drivers.group import BUS_WATCHDOG, GOAL_POSITION, TORQUE_ENABLE, ServoGroup
+from drivers.group import BUS_WATCHDOG, ServoGroup
 from drivers.safety import require_inside_limits
 from drivers.servo_map import ServoSpec
+
+if TYPE_CHECKING:
+    from drivers.group1 import ServoGroup1
 
 __all__ = [
     "SettingChange",
@@ -114,21 +118,7 @@ def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = 
 
         return preflight1(group, configure=configure, require_all=require_all)
     bus, smap = group.bus, group.map
-    found = bus.scan(smap.ids)
-    missing = [i for i in smap.ids if i not in found]
-    if missing and require_all:
-        raise PreflightError(
-            f"servo(s) {missing} did not answer ({len(found)}/{len(smap)} found)",
-            hint="check power and cabling; robot-rise servos scan --port PORT lists what answers")
-    wrong = []
-    for sid, r in found.items():
-        spec = smap.by_id(sid)
-        if r.model_number != spec.table.model_number:
-            actual = model_for_number(r.model_number)
-            wrong.append(f"id {sid} ({spec.joint}) is {actual.model if actual else r.model_number}, "
-                         f"map says {spec.model}")
-    if wrong:
-        raise PreflightError("model mismatch: " + "; ".join(wrong), hint="fix servos.toml or the wiring")
+    found = _find_servos(group, require_all=require_all)
     hw_errors: dict[int, int] = {}
     changes: list[SettingChange] = []
     rd_units = smap.bus.return_delay_units
@@ -139,27 +129,69 @@ def preflight(group: ServoGroup, *, configure: bool = True, require_all: bool = 
         if hw:
             hw_errors[sid] = hw
             _log.warning("servo %d: hardware error at start: %s", sid, HardwareErrorBits.describe(hw))
-        want = desired_eeprom(spec, rd_units)
-        diffs = []
-        for name, value in want.items():
-            old = bus.read_value(sid, table[name])
-            if old != value:
-                diffs.append(SettingChange(sid, name, old, value))
+        diffs = _setting_changes(bus, sid, table, desired_eeprom(spec, rd_units))
         if diffs and configure:
-            bus.write_value(sid, table["torque_enable"], 0)
-            for c in diffs:
-                _log.info("servo %d: %s %d -> %d", sid, c.register, c.old, c.new)
-                try:
-                    bus.write_value(sid, table[c.register], c.new)
-                except ServoStatusError as e:
-                    raise PreflightError(f"cannot set {c.register} on servo {sid}: {e}",
-                                         hint="is the value supported by this model?") from e
+            _write_changes(bus, sid, table, diffs)
         changes.extend(diffs)
     if configure:
         apply_ram_settings(group, list(found))
     fast = all(r.firmware_version >= smap.by_id(i).table.fast_sync_read_min_firmware for i, r in found.items())
     group.fast_read = fast
     return PreflightReport(found, tuple(changes), fast, hw_errors)
+
+
+def _find_servos(group: ServoGroup | ServoGroup1, *, require_all: bool) -> dict[int, PingResult]:
+    """Ping every ID of the group's map: the answers by ID, each of the model the map names.
+
+    Raises:
+        PreflightError: a servo did not answer (with ``require_all``) or is another model.
+    """
+    bus, smap = group.bus, group.map
+    found = bus.scan(smap.ids)
+    missing = [i for i in smap.ids if i not in found]
+    if missing and require_all:
+        raise PreflightError(
+            f"servo(s) {missing} did not answer ({len(found)}/{len(smap)} found)",
+            hint="check power and cabling; robot-rise servos scan --port PORT lists what answers")
+    wrong = []
+    for sid, r in found.items():
+        spec = smap.by_id(sid)
+        if r.model_number != spec.table.model_number:
+            actual = model_for_number(r.model_number, group.protocol)
+            wrong.append(f"id {sid} ({spec.joint}) is {actual.model if actual else r.model_number}, "
+                         f"map says {spec.model}")
+    if wrong:
+        raise PreflightError("model mismatch: " + "; ".join(wrong), hint="fix servos.toml or the wiring")
+    return found
+
+
+def _setting_changes(bus: DynamixelBus, sid: int, table: ControlTable, want: Mapping[str, int], *,
+                     present: Mapping[str, int] | None = None) -> list[SettingChange]:
+    """The settings of servo ``sid`` that differ from ``want`` (register name -> raw value);
+    values in ``present`` were read already and are not read again."""
+    present = present or {}
+    diffs = []
+    for name, value in want.items():
+        old = present[name] if name in present else bus.read_value(sid, table[name])
+        if old != value:
+            diffs.append(SettingChange(sid, name, old, value))
+    return diffs
+
+
+def _write_changes(bus: DynamixelBus, sid: int, table: ControlTable, diffs: list[SettingChange]) -> None:
+    """Write ``diffs`` to servo ``sid``, torque off first.
+
+    Raises:
+        PreflightError: the servo refused a value.
+    """
+    bus.write_value(sid, table["torque_enable"], 0)
+    for c in diffs:
+        _log.info("servo %d: %s %d -> %d", sid, c.register, c.old, c.new)
+        try:
+            bus.write_value(sid, table[c.register], c.new)
+        except ServoStatusError as e:
+            raise PreflightError(f"cannot set {c.register} on servo {sid}: {e}",
+                                 hint="is the value supported by this model?") from e
 
 
 def apply_ram_settings(group: ServoGroup, ids: list[int]) -> None:
@@ -281,37 +313,63 @@ def recover(group: ServoGroup, ids: list[int], *, attempts: int = 2, boot_wait_s
 
         return recover1(group, ids, attempts=attempts, torque_on=torque_on)
     bus = group.bus
+
+    def attempt_once(sid: int, attempt: int, messages: list[str]) -> bool:
+        table = group.map.by_id(sid).table
+        try:
+            bus.reboot(sid)
+        except CommunicationError as e:
+            messages.append(f"servo {sid}: reboot attempt {attempt} got no reply ({e})")
+        bus.clock.sleep(boot_wait_s)
+        if bus.ping(sid) is None:
+            messages.append(f"servo {sid}: silent after reboot attempt {attempt}")
+            return False
+        try:
+            hw = bus.read_value(sid, table["hardware_error_status"])
+        except CommunicationError as e:
+            messages.append(f"servo {sid}: attempt {attempt} failed: {e}")
+            return False
+        if hw:
+            messages.append(f"servo {sid}: still {HardwareErrorBits.describe(hw)} after reboot")
+            return False
+        return _hold_again(group, sid, table, attempt, messages, apply_ram=apply_ram_settings, torque_on=torque_on)
+
+    return _recover_each(ids, attempts, attempt_once)
+
+
+def _recover_each(ids: list[int], attempts: int, attempt_once: Callable[[int, int, list[str]], bool]) -> RecoveryReport:
+    """At most ``attempts`` calls of ``attempt_once(sid, attempt, messages)`` per servo of ``ids``,
+    until one returns True (recovered); each adds what it found to ``messages``."""
     recovered, failed, messages = [], [], []
     total = 0
     for sid in ids:
-        table = group.map.by_id(sid).table
         ok = False
         for attempt in range(1, attempts + 1):
             total += 1
-            try:
-                bus.reboot(sid)
-            except CommunicationError as e:
-                messages.append(f"servo {sid}: reboot attempt {attempt} got no reply ({e})")
-            bus.clock.sleep(boot_wait_s)
-            if bus.ping(sid) is None:
-                messages.append(f"servo {sid}: silent after reboot attempt {attempt}")
-                continue
-            try:
-                hw = bus.read_value(sid, table["hardware_error_status"])
-                if hw:
-                    messages.append(f"servo {sid}: still {HardwareErrorBits.describe(hw)} after reboot")
-                    continue
-                apply_ram_settings(group, [sid])
-                _, data = bus.read(sid, table["present_position"].address, 4)
-                bus.write(sid, GOAL_POSITION, data)
-                if torque_on:
-                    bus.write(sid, TORQUE_ENABLE, b"\x01")
-                group.quarantined.discard(sid)
+            if attempt_once(sid, attempt, messages):
                 ok = True
-                messages.append(f"servo {sid}: recovered on attempt {attempt} "
-                                f"(holding {struct.unpack('<i', data)[0]} ticks)")
                 break
-            except CommunicationError as e:
-                messages.append(f"servo {sid}: attempt {attempt} failed: {e}")
         (recovered if ok else failed).append(sid)
     return RecoveryReport(tuple(recovered), tuple(failed), total, tuple(messages))
+
+
+def _hold_again(group: ServoGroup | ServoGroup1, sid: int, table: ControlTable, attempt: int, messages: list[str], *,
+                apply_ram: Callable[..., None], torque_on: bool) -> bool:
+    """The end of a recovery attempt on a servo that answers: its RAM settings again
+    (``apply_ram(group, [sid])``), goal = present position, torque on if ``torque_on``, out of
+    quarantine. True if it holds; a communication error ends the attempt (False). Either way
+    ``messages`` says so."""
+    bus = group.bus
+    try:
+        apply_ram(group, [sid])
+        present = table["present_position"]
+        _, data = bus.read(sid, present.address, present.size)
+        bus.write(sid, table["goal_position"].address, data)
+        if torque_on:
+            bus.write_value(sid, table["torque_enable"], 1)
+        group.quarantined.discard(sid)
+        messages.append(f"servo {sid}: recovered on attempt {attempt} (holding {present.decode(data)} ticks)")
+        return True
+    except CommunicationError as e:
+        messages.append(f"servo {sid}: attempt {attempt} failed: {e}")
+        return False

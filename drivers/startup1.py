@@ -33,16 +33,23 @@ from __future__ import annotations
 import contextlib
 import logging
 import signal
-import struct
 import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from drivers.control_table import model_for_number
-from drivers.errors import CommunicationError, PreflightError, ServoStatusError
+from drivers.errors import CommunicationError
 from drivers.protocol1 import ErrorBits1
 from drivers.servo_map import ServoSpec
-from drivers.startup import PreflightReport, RecoveryReport, SettingChange
+from drivers.startup import (
+    PreflightReport,
+    RecoveryReport,
+    SettingChange,
+    _find_servos,
+    _hold_again,
+    _recover_each,
+    _setting_changes,
+    _write_changes,
+)
 
 if TYPE_CHECKING:
     from drivers.group1 import ServoGroup1
@@ -95,21 +102,7 @@ def preflight1(group: "ServoGroup1", *, configure: bool = True, require_all: boo
         PreflightError: a servo is missing, has the wrong model, or a setting cannot be written.
     """
     bus, smap = group.bus, group.map
-    found = bus.scan(smap.ids)
-    missing = [i for i in smap.ids if i not in found]
-    if missing and require_all:
-        raise PreflightError(
-            f"servo(s) {missing} did not answer ({len(found)}/{len(smap)} found)",
-            hint="check power and cabling; robot-rise servos scan --port PORT lists what answers")
-    wrong = []
-    for sid, r in found.items():
-        spec = smap.by_id(sid)
-        if r.model_number != spec.table.model_number:
-            actual = model_for_number(r.model_number, 1.0)
-            wrong.append(f"id {sid} ({spec.joint}) is {actual.model if actual else r.model_number}, "
-                         f"map says {spec.model}")
-    if wrong:
-        raise PreflightError("model mismatch: " + "; ".join(wrong), hint="fix servos.toml or the wiring")
+    found = _find_servos(group, require_all=require_all)
     hw_errors: dict[int, int] = {}
     changes: list[SettingChange] = []
     rd_units = smap.bus.return_delay_units
@@ -120,20 +113,9 @@ def preflight1(group: "ServoGroup1", *, configure: bool = True, require_all: boo
             hw_errors[sid] = r.error & ErrorBits1.HARDWARE
             _log.warning("servo %d: alarm at start: %s", sid, ErrorBits1.describe(r.error))
         present = {"alarm_shutdown": bus.read_value(sid, table["alarm_shutdown"])}
-        diffs = []
-        for name, value in desired_eeprom1(spec, rd_units, present).items():
-            old = present[name] if name in present else bus.read_value(sid, table[name])
-            if old != value:
-                diffs.append(SettingChange(sid, name, old, value))
+        diffs = _setting_changes(bus, sid, table, desired_eeprom1(spec, rd_units, present), present=present)
         if diffs and configure:
-            bus.write_value(sid, table["torque_enable"], 0)
-            for c in diffs:
-                _log.info("servo %d: %s %d -> %d", sid, c.register, c.old, c.new)
-                try:
-                    bus.write_value(sid, table[c.register], c.new)
-                except ServoStatusError as e:
-                    raise PreflightError(f"cannot set {c.register} on servo {sid}: {e}",
-                                         hint="is the value supported by this model?") from e
+            _write_changes(bus, sid, table, diffs)
         changes.extend(diffs)
     if configure:
         apply_ram_settings1(group, list(found))
@@ -161,37 +143,21 @@ def recover1(group: "ServoGroup1", ids: list[int], *, attempts: int = 2, torque_
     RAM settings written again (this also clears a latched overload), goal = present, torque on.
     There is no reboot on 1.0: a servo that stays silent needs its power cycled."""
     bus = group.bus
-    recovered, failed, messages = [], [], []
-    total = 0
-    for sid in ids:
+
+    def attempt_once(sid: int, attempt: int, messages: list[str]) -> bool:
         table = group.map.by_id(sid).table
-        ok = False
-        for attempt in range(1, attempts + 1):
-            total += 1
-            ping = bus.ping(sid)
-            if ping is None:
-                messages.append(f"servo {sid}: silent (attempt {attempt}; Protocol 1.0 has no reboot: "
-                                "power-cycle it)")
-                continue
-            live = ping.error & (ErrorBits1.INPUT_VOLTAGE | ErrorBits1.OVERHEATING)
-            if live:
-                messages.append(f"servo {sid}: still {ErrorBits1.describe(live)}")
-                continue
-            try:
-                apply_ram_settings1(group, [sid])
-                _, data = bus.read(sid, table["present_position"].address, 2)
-                bus.write(sid, table["goal_position"].address, data)
-                if torque_on:
-                    bus.write_value(sid, table["torque_enable"], 1)
-                group.quarantined.discard(sid)
-                ok = True
-                messages.append(f"servo {sid}: recovered on attempt {attempt} "
-                                f"(holding {struct.unpack('<H', data)[0]} ticks)")
-                break
-            except CommunicationError as e:
-                messages.append(f"servo {sid}: attempt {attempt} failed: {e}")
-        (recovered if ok else failed).append(sid)
-    return RecoveryReport(tuple(recovered), tuple(failed), total, tuple(messages))
+        ping = bus.ping(sid)
+        if ping is None:
+            messages.append(f"servo {sid}: silent (attempt {attempt}; Protocol 1.0 has no reboot: "
+                            "power-cycle it)")
+            return False
+        live = ping.error & (ErrorBits1.INPUT_VOLTAGE | ErrorBits1.OVERHEATING)
+        if live:
+            messages.append(f"servo {sid}: still {ErrorBits1.describe(live)}")
+            return False
+        return _hold_again(group, sid, table, attempt, messages, apply_ram=apply_ram_settings1, torque_on=torque_on)
+
+    return _recover_each(ids, attempts, attempt_once)
 
 
 class _Terminated(KeyboardInterrupt):

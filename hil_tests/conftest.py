@@ -3,8 +3,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +18,7 @@ import drivers.mockbus as mb
 from drivers.bus import DynamixelBus
 from drivers.clock import FakeClock
 from drivers.group import ServoGroup
+from drivers.mockbus.pty_server import PtyServer
 from drivers.port import open_port
 from drivers.safety import SafetyLimits
 from drivers.servo_map import ServoMap, load_servo_map
@@ -87,6 +91,21 @@ def make_rig(servo_map: ServoMap, *, initial_rad: np.ndarray | None = None, **bu
 @pytest.fixture
 def rig(servo_map: ServoMap) -> Rig:
     return make_rig(servo_map)
+
+
+@contextlib.contextmanager
+def pty_served_by_thread(bus: mb.MockBus) -> Iterator[PtyServer]:
+    """``bus`` on a pseudo-terminal served by a thread of this process, stopped and closed on exit."""
+    server = PtyServer(bus)
+    server.open()
+    thread = threading.Thread(target=server.serve, daemon=True)
+    thread.start()
+    try:
+        yield server
+    finally:
+        server.stop()
+        thread.join(5.0)
+        server.close()
 
 
 @pytest.fixture

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import re
 import shutil
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from drivers.servo_map import ServoMap, load_servo_map, parse_servo_map, with_pr
 from drivers.session import Connection, connect, mock_bus_for, mock_url_for
 from drivers.startup import engage, preflight
 from drivers.startup1 import host_stop_guard
+from hil_tests.conftest import pty_served_by_thread
 
 REPO = Path(__file__).resolve().parents[1]
 POPPY_P1 = REPO.parent / "shared" / "robots" / "poppy" / "poppy_servos_p1.toml"
@@ -215,14 +215,8 @@ def test_that_an_exception_leaving_the_host_guard_turns_the_torque_off(rig) -> N
 # ---- dynamixel_sdk's own Protocol 1.0 packet handler --------------------------------------
 @pytest.fixture
 def pty_poppy(poppy: ServoMap) -> Iterator[PtyServer]:
-    server = PtyServer(mock_bus_for(poppy, wire_timing=True))
-    server.open()
-    thread = threading.Thread(target=server.serve, daemon=True)
-    thread.start()
-    yield server
-    server.stop()
-    thread.join(5.0)
-    server.close()
+    with pty_served_by_thread(mock_bus_for(poppy, wire_timing=True)) as server:
+        yield server
 
 
 def test_that_unmodified_dynamixel_sdk_protocol_1_0_pings_writes_syncs_and_bulk_reads(pty_poppy: PtyServer) -> None:
@@ -296,6 +290,7 @@ def test_that_execute_mock_streams_a_proven_trajectory_on_a_1_0_robot(
     from robot_rise.cli import main
     from robot_rise.model import load_robot
     from robot_rise.posture import stand_posture
+    from robot_rise.seal import sealed
     from robot_rise.trajectory import Trajectory, write_trajectory
 
     robot = load_robot(robot1)
@@ -305,7 +300,7 @@ def test_that_execute_mock_streams_a_proven_trajectory_on_a_1_0_robot(
     q[:, robot.joint_names.index("r_sho_pitch")] += np.linspace(0.0, 0.2, t.size)
     report = {"proven": True, "robot": robot.name, "robot_digest": robot.digest(), "scene": "flat"}
     path = tmp_path / "arm.json"
-    write_trajectory(path, Trajectory(robot.name, robot.joint_names, t, q, start, report))
+    write_trajectory(path, sealed(Trajectory(robot.name, robot.joint_names, t, q, start, report)))  # the test's own "proof", sealed
     log = tmp_path / "run.csv"
     assert main(["execute", str(path), "--mock", "--yes", "--robot", str(robot1), "--log", str(log)]) == 0
     out = capsys.readouterr().out

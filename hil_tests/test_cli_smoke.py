@@ -19,6 +19,7 @@ from robot_rise.cli import main
 from robot_rise.model import Robot, load_robot
 from robot_rise.trajectory import Trajectory, write_trajectory
 from robot_rise.posture import stand_posture
+from robot_rise.seal import sealed
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,7 @@ def _trajectory(robot: Robot, path: Path, report: dict) -> Path:
     q = np.repeat(start.joint_vector(robot.joint_names)[None, :], t.size, axis=0)
     k = robot.joint_names.index("r_sho_pitch")
     q[:, k] += np.linspace(0.0, 0.2, t.size)
-    write_trajectory(path, Trajectory(robot.name, robot.joint_names, t, q, start, report))
+    write_trajectory(path, sealed(Trajectory(robot.name, robot.joint_names, t, q, start, report)))  # a "proven" report is the test's own proof: sealed
     return path
 
 
@@ -111,7 +112,7 @@ def test_that_bad_execute_input_is_one_error_line_before_anything_moves(
         tr = read_trajectory(path)
         q = np.array(tr.q)
         edit(q, robot.joint_names.index("r_sho_pitch"))
-        write_trajectory(path, Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report))
+        write_trajectory(path, sealed(Trajectory(tr.robot, tr.joint_names, tr.t, q, tr.start, tr.report)))  # as if proven so: the limits must still catch it
     assert main(["execute", str(path), "--mock", "--yes", *args]) == 2
     out, err = capsys.readouterr()
     lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
@@ -272,8 +273,8 @@ def predicted_arm(robot: Robot, tmp_path_factory: pytest.TempPathFactory) -> Pat
     traj = read_trajectory(path)
     rec, _, proof = prove(robot, traj, scene="flat")
     assert proof.proven, proof.problems
-    write_trajectory(path, traj.with_report(**proof.to_dict(), command_limits=_limits_entry(robot),
-                                            predicted=predicted_positions(rec)))
+    write_trajectory(path, sealed(traj.with_report(**proof.to_dict(), command_limits=_limits_entry(robot),
+                                                   predicted=predicted_positions(rec))))  # what was just proven
     return path
 
 

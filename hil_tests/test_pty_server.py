@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import struct
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from drivers.safety import SafetyLimits
 from drivers.servo_map import ServoMap
 from drivers.session import connect, mock_bus_for
 from drivers.startup import engage, preflight
+from hil_tests.conftest import pty_served_by_thread
 
 BAUD = 1_000_000
 
@@ -41,14 +41,8 @@ def server() -> Iterator[PtyServerProcess]:
 @pytest.fixture
 def threaded(servo_map: ServoMap) -> Iterator[PtyServer]:
     """The robot's servo map on a pty served by a thread of this process."""
-    server = PtyServer(mock_bus_for(servo_map, wire_timing=True))
-    server.open()
-    thread = threading.Thread(target=server.serve, daemon=True)
-    thread.start()
-    yield server
-    server.stop()
-    thread.join(5.0)
-    server.close()
+    with pty_served_by_thread(mock_bus_for(servo_map, wire_timing=True)) as server:
+        yield server
 
 
 def test_that_unmodified_dynamixel_sdk_pings_writes_and_reads_through_the_pty(server: PtyServerProcess) -> None:

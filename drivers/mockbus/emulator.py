@@ -22,17 +22,19 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 
 from drivers.clock import Clock, MonotonicClock
-from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, ControlTable, control_table
+from drivers.control_table import BAUD_INDEX_BY_RATE, BAUD_RATE_BY_INDEX, CENTER_TICKS, RAD_PER_TICK, control_table
 from drivers.mockbus.faults import FaultInjector
 from drivers.mockbus.plant import KinematicPlant, Plant, ServoMotion, imu_source_of
 from drivers.mockbus.emulated_imu import EmulatedImu
 from drivers.mockbus.emulated_servo import EmulatedServo
 from drivers.protocol import (
     BROADCAST_ID,
+    FrameReader,
     Instruction,
     Packet,
     PacketReader,
     StatusError,
+    decode_packet,
     encode_fast_sync_status,
     encode_status,
     wire_time_s,
@@ -74,6 +76,8 @@ class MockBus:
             plant's IMU hook unless it has a source of its own.
     """
 
+    _baud_by_index: Mapping[int, int] = BAUD_RATE_BY_INDEX  # Baud Rate register value -> bit/s
+
     def __init__(self, servos: Mapping[int, str], *, baud_rate: int = 1_000_000,
                  clock: Clock | None = None, plant: Plant | None = None,
                  faults: FaultInjector | None = None, wire_timing: bool = False,
@@ -82,31 +86,39 @@ class MockBus:
                  plant_period_s: float = _PLANT_PERIOD_S, imu: EmulatedImu | None = None) -> None:
         if baud_rate not in BAUD_INDEX_BY_RATE:
             raise ValueError(f"baud_rate {baud_rate} not in {sorted(BAUD_INDEX_BY_RATE)}")
+        init = dict(initial_position_ticks or {})
+        emulated = {sid: EmulatedServo(sid, control_table(model), baud_index=BAUD_INDEX_BY_RATE[baud_rate],
+                                       return_delay_units=return_delay_units,
+                                       initial_position_ticks=init.get(sid, CENTER_TICKS),
+                                       firmware_version=firmware_version)
+                    for sid, model in servos.items()}
+        if plant is None:
+            plant = KinematicPlant(initial_rad={
+                sid: (init.get(sid, CENTER_TICKS) - CENTER_TICKS) * RAD_PER_TICK for sid in servos})
+        if imu is not None:
+            if imu.id in emulated:
+                raise ValueError(f"the IMU's ID {imu.id} is a servo's")
+            imu.set("baud_rate", BAUD_INDEX_BY_RATE[baud_rate])  # configured for the bus, as on the robot
+            if imu.source is None:
+                imu.source = imu_source_of(plant)
+        self._start(emulated, plant, imu, PacketReader(), baud_rate=baud_rate, clock=clock, faults=faults,
+                    wire_timing=wire_timing, boot_time_s=boot_time_s, plant_period_s=plant_period_s)
+
+    def _start(self, servos: Mapping[int, EmulatedServo], plant: Plant, imu: EmulatedImu | None,
+               reader: FrameReader, *, baud_rate: int, clock: Clock | None, faults: FaultInjector | None,
+               wire_timing: bool, boot_time_s: float, plant_period_s: float) -> None:
+        """The state of a bus of ``servos`` whatever its protocol (``reader``: its codec's frame
+        reader); the other arguments as in the constructor."""
         self.baud_rate = baud_rate
         self.clock: Clock = clock or MonotonicClock()
         self.faults = faults or FaultInjector()
         self.wire_timing = wire_timing
         self.boot_time_s = boot_time_s
         self.plant_period_s = plant_period_s
-        init = dict(initial_position_ticks or {})
-        self.servos: dict[int, EmulatedServo] = {}
-        for sid, model in servos.items():
-            table: ControlTable = control_table(model)
-            self.servos[sid] = EmulatedServo(
-                sid, table, baud_index=BAUD_INDEX_BY_RATE[baud_rate], return_delay_units=return_delay_units,
-                initial_position_ticks=init.get(sid, CENTER_TICKS), firmware_version=firmware_version)
-        if plant is None:
-            plant = KinematicPlant(initial_rad={
-                sid: (init.get(sid, CENTER_TICKS) - CENTER_TICKS) * RAD_PER_TICK for sid in servos})
+        self.servos: dict[int, EmulatedServo] = dict(servos)
         self.plant = plant
         self.imu = imu
-        if imu is not None:
-            if imu.id in self.servos:
-                raise ValueError(f"the IMU's ID {imu.id} is a servo's")
-            imu.set("baud_rate", BAUD_INDEX_BY_RATE[baud_rate])  # configured for the bus, as on the robot
-            if imu.source is None:
-                imu.source = imu_source_of(plant)
-        self._reader = PacketReader()
+        self._reader = reader
         self._last_s = self.clock.now()
         self._wire_free_s = self._last_s  # [s] when the last packet or reply leaves the wire
         for s in self.servos.values():
@@ -180,11 +192,8 @@ class MockBus:
             frame = self._reader.next_frame()
             if frame is None:
                 break
-            try:
-                from drivers.protocol import decode_packet
-
-                packet = decode_packet(frame)
-            except Exception:  # malformed after CRC passed (e.g. empty body): ignore like a servo
+            packet = self._decode(frame)
+            if packet is None:
                 continue
             self.packets_received += 1
             if len(self.log) < self._log_limit:
@@ -193,17 +202,33 @@ class MockBus:
                 listener(now, packet)
             if self.wire_timing:
                 t_free += wire_time_s(len(frame), self.baud_rate)
+            chained = self._chained(packet)
             for sid, reply in self._handle(packet, now):
                 delay = self._return_delay_s(sid) if self.wire_timing else 0.0
                 mangled = self.faults.mangle(reply)
                 if self.wire_timing:
                     t_free += delay + wire_time_s(len(reply), self.baud_rate)
                 if mangled is None:
+                    if chained:
+                        break  # the next servo never hears the status it waits for
                     continue
                 replies.append(Reply(t_free + self.faults.extra_latency_s, mangled))
+                if chained and mangled != reply:
+                    break
         if self.wire_timing:
             self._wire_free_s = t_free
         return replies
+
+    def _decode(self, frame: bytes) -> Packet | None:
+        """The instruction packet in ``frame``; ``None`` for one a servo would ignore."""
+        try:
+            return decode_packet(frame)
+        except Exception:  # malformed after CRC passed (e.g. empty body): ignore like a servo
+            return None
+
+    def _chained(self, packet: Packet) -> bool:
+        """Each reply to ``packet`` waits for the one before it (a lost one silences the rest)."""
+        return False
 
     def _return_delay_s(self, sid: int) -> float:
         servo = self.servos.get(sid)
@@ -247,7 +272,7 @@ class MockBus:
         s = self.servos.get(sid)
         if s is None or sid in self.faults.deaf_ids or now < s.boot_until_s:
             return None
-        if BAUD_BY_INDEX.get(s.get("baud_rate")) != self.baud_rate:
+        if self._baud_by_index.get(s.get("baud_rate")) != self.baud_rate:
             return None
         return s
 
@@ -299,15 +324,7 @@ class MockBus:
                                    fast=inst == Instruction.FAST_BULK_READ)
         if inst == Instruction.SYNC_WRITE and len(params) >= 4:
             address, length = struct.unpack_from("<HH", params)
-            body = params[4:]
-            step = 1 + length
-            if length == 0 or len(body) % step:
-                return out
-            for k in range(0, len(body), step):
-                s = self._listening(body[k], now)
-                if s is not None:
-                    s.feed_watchdog(now)
-                    s.write(address, body[k + 1 : k + step], now)
+            self._sync_write(address, length, params[4:], now)
             return out
         if inst == Instruction.BULK_WRITE:
             k = 0
@@ -331,6 +348,18 @@ class MockBus:
             if s is not None and self._answers(s):
                 out.append((s.id, encode_status(s.id, StatusError.INSTRUCTION | s.alert)))
         return out
+
+    def _sync_write(self, address: int, length: int, body: bytes, now: float) -> None:
+        """A SYNC_WRITE's ``body`` (per servo: ID, then ``length`` bytes) written to each listening
+        servo at ``address``; a body of the wrong size is ignored, as a servo does."""
+        step = 1 + length
+        if length == 0 or len(body) % step:
+            return
+        for k in range(0, len(body), step):
+            s = self._listening(body[k], now)
+            if s is not None:
+                s.feed_watchdog(now)
+                s.write(address, body[k + 1 : k + step], now)
 
     def _single(self, s: EmulatedServo, p: Packet, now: float) -> bytes | None:
         inst, params = p.instruction, p.params
@@ -365,13 +394,9 @@ class MockBus:
                 err = s.alert
             return encode_status(sid, err) if self._answers(s) else None
         if inst == Instruction.ACTION:
-            if s.registered is None:
+            err = _apply_registered_write(s, now, flag_address=69)
+            if err is None:
                 err = StatusError.RESULT_FAIL | s.alert
-            else:
-                address, data = s.registered
-                s.registered = None
-                s.mem[69] = 0
-                err = s.write(address, data, now)
             return encode_status(sid, err) if self._answers(s) else None
         if inst == Instruction.REBOOT:
             reply = encode_status(sid, s.alert) if self._answers(s) else None
@@ -432,3 +457,15 @@ class MockBus:
     def from_ids(cls, ids: Iterable[int], model: str = "XM430-W350", **kwargs: object) -> "MockBus":
         """A bus with ``model`` servos at ``ids`` (keyword arguments as in the constructor)."""
         return cls({i: model for i in ids}, **kwargs)  # type: ignore[arg-type]
+
+
+def _apply_registered_write(s: EmulatedServo, now: float, *, flag_address: int) -> int | None:
+    """ACTION on ``s``: the write its REG_WRITE registered, done now; its status error bits, or
+    ``None`` when nothing was registered. The Registered Instruction flag at ``flag_address``
+    reads 0 again."""
+    if s.registered is None:
+        return None
+    address, data = s.registered
+    s.registered = None
+    s.mem[flag_address] = 0
+    return s.write(address, data, now)

@@ -19,12 +19,12 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-from drivers.clock import Clock, MonotonicClock
+from drivers.clock import Clock
 from drivers.control_table import control_table
 from drivers.control_table1 import BAUD_INDEX_BY_RATE_1, BAUD_RATE_BY_INDEX_1
 from drivers.errors import ProtocolError
 from drivers.mockbus.emulated_servo1 import EmulatedServo1
-from drivers.mockbus.emulator import _PLANT_PERIOD_S, MockBus, Reply
+from drivers.mockbus.emulator import _PLANT_PERIOD_S, MockBus, _apply_registered_write
 from drivers.mockbus.faults import FaultInjector
 from drivers.mockbus.plant import KinematicPlant, Plant
 from drivers.protocol import Packet
@@ -36,7 +36,6 @@ from drivers.protocol1 import (
     decode_instruction1,
     encode_status1,
     parse_bulk_read_params1,
-    wire_time_s,
 )
 
 __all__ = ["MockBus1"]
@@ -52,6 +51,7 @@ class MockBus1(MockBus):
     model's default)."""
 
     protocol = 1.0
+    _baud_by_index = BAUD_RATE_BY_INDEX_1
 
     def __init__(self, servos: Mapping[int, str], *, baud_rate: int = 1_000_000,
                  clock: Clock | None = None, plant: Plant | None = None,
@@ -63,85 +63,32 @@ class MockBus1(MockBus):
             raise ValueError(f"baud_rate {baud_rate} is not a Protocol 1.0 rate {sorted(BAUD_INDEX_BY_RATE_1)}")
         if imu is not None:
             raise ValueError("the OpenCR (IMU) speaks Protocol 2.0; a 1.0 bus has none")
-        self.baud_rate = baud_rate
-        self.clock = clock or MonotonicClock()
-        self.faults = faults or FaultInjector()
-        self.wire_timing = wire_timing
-        self.boot_time_s = boot_time_s
-        self.plant_period_s = plant_period_s
         init = dict(initial_position_ticks or {})
-        self.servos = {}  # type: ignore[assignment]  (EmulatedServo1 has EmulatedServo's bus interface)
-        initial_rad = {}
+        emulated = {}
         for sid, model in servos.items():
             table = control_table(model, 1.0)
-            s = EmulatedServo1(sid, table, baud_index=BAUD_INDEX_BY_RATE_1[baud_rate],
-                               return_delay_units=return_delay_units,
-                               initial_position_ticks=init.get(sid, table.center_ticks),
-                               firmware_version=firmware_version)
-            self.servos[sid] = s  # type: ignore[assignment]
-            initial_rad[sid] = s.position_rad
-        self.plant = plant if plant is not None else KinematicPlant(initial_rad=initial_rad)
-        self.imu = None
-        self._reader = PacketReader1()  # type: ignore[assignment]
-        self._last_s = self.clock.now()
-        self._wire_free_s = self._last_s
-        for s in self.servos.values():
-            s.start_s = self._last_s
-            s.watchdog_last_feed_s = self._last_s
-        self.packets_received = 0
-        self.log = []
-        self._log_limit = 10000
-        self.packet_listeners = []
+            emulated[sid] = EmulatedServo1(sid, table, baud_index=BAUD_INDEX_BY_RATE_1[baud_rate],
+                                           return_delay_units=return_delay_units,
+                                           initial_position_ticks=init.get(sid, table.center_ticks),
+                                           firmware_version=firmware_version)
+        if plant is None:
+            plant = KinematicPlant(initial_rad={sid: s.position_rad for sid, s in emulated.items()})
+        # EmulatedServo1 has EmulatedServo's bus interface
+        self._start(emulated, plant, None, PacketReader1(), baud_rate=baud_rate,  # type: ignore[arg-type]
+                    clock=clock, faults=faults, wire_timing=wire_timing, boot_time_s=boot_time_s,
+                    plant_period_s=plant_period_s)
 
-    # ---- bytes in, replies out -----------------------------------------------------------
-    def receive(self, data: bytes, now_s: float | None = None) -> list[Reply]:
-        """Process bytes written by the host at ``now_s``; return the replies, in wire order."""
-        now = self.clock.now() if now_s is None else now_s
-        self.advance(now)
-        self._reader.feed(data)
-        replies: list[Reply] = []
-        t_free = max(now, self._wire_free_s) if self.wire_timing else now
-        while True:
-            frame = self._reader.next_frame()
-            if frame is None:
-                break
-            try:
-                packet = decode_instruction1(frame)
-            except ProtocolError:
-                continue
-            self.packets_received += 1
-            if len(self.log) < self._log_limit:
-                self.log.append(packet)
-            for listener in self.packet_listeners:
-                listener(now, packet)
-            if self.wire_timing:
-                t_free += wire_time_s(len(frame), self.baud_rate)
-            chained = packet.instruction == Instruction1.BULK_READ
-            for sid, reply in self._handle1(packet, now):
-                delay = self._return_delay_s(sid) if self.wire_timing else 0.0
-                mangled = self.faults.mangle(reply)
-                if self.wire_timing:
-                    t_free += delay + wire_time_s(len(reply), self.baud_rate)
-                if mangled is None:
-                    if chained:
-                        break  # the next servo never hears the status it waits for
-                    continue
-                replies.append(Reply(t_free + self.faults.extra_latency_s, mangled))
-                if chained and mangled != reply:
-                    break
-        if self.wire_timing:
-            self._wire_free_s = t_free
-        return replies
-
-    def _listening(self, sid: int, now: float) -> EmulatedServo1 | None:  # type: ignore[override]
-        s = self.servos.get(sid)
-        if s is None or sid in self.faults.deaf_ids or now < s.boot_until_s:
+    # ---- bytes in, replies out (MockBus.receive with these) ------------------------------
+    def _decode(self, frame: bytes) -> Packet | None:
+        try:
+            return decode_instruction1(frame)
+        except ProtocolError:
             return None
-        if BAUD_RATE_BY_INDEX_1.get(s.get("baud_rate")) != self.baud_rate:
-            return None
-        return s  # type: ignore[return-value]
 
-    def _handle1(self, p: Packet, now: float) -> list[tuple[int, bytes]]:
+    def _chained(self, packet: Packet) -> bool:
+        return packet.instruction == Instruction1.BULK_READ  # each status follows the one before it
+
+    def _handle(self, p: Packet, now: float) -> list[tuple[int, bytes]]:
         inst, params = p.instruction, p.params
         out: list[tuple[int, bytes]] = []
         if inst in _SINGLE:
@@ -158,15 +105,7 @@ class MockBus1(MockBus):
                 out.append((sid, reply))
             return out
         if inst == Instruction1.SYNC_WRITE and len(params) >= 2:
-            address, length = params[0], params[1]
-            body = params[2:]
-            step = 1 + length
-            if length == 0 or len(body) % step:
-                return out
-            for k in range(0, len(body), step):
-                s = self._listening(body[k], now)
-                if s is not None:
-                    s.write(address, body[k + 1 : k + step], now)
+            self._sync_write(params[0], params[1], params[2:], now)
             return out
         if inst == Instruction1.BULK_READ:
             try:
@@ -215,13 +154,9 @@ class MockBus1(MockBus):
                 err = s.alert
             return encode_status1(sid, err) if self._answers(s) else None
         if inst == Instruction1.ACTION:
-            if s.registered is None:
+            err = _apply_registered_write(s, now, flag_address=44)  # type: ignore[arg-type]
+            if err is None:
                 err = s.alert  # nothing registered: nothing happens
-            else:
-                address, data = s.registered
-                s.registered = None
-                s.mem[44] = 0
-                err = s.write(address, data, now)
             return encode_status1(sid, err) if self._answers(s) else None
         if inst == Instruction1.RESET:
             reply = encode_status1(sid, s.alert) if self._answers(s) else None
