@@ -308,3 +308,12 @@ def test_a_bad_servo_map_is_one_line_at_import_not_a_failed_stand(tmp_path: Path
         _import(case, tmp_path / "out")
     assert "\n" not in str(e.value) and "standing posture" not in str(e.value)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("bad", ['lower="nan" upper="nan"', 'lower="1.0" upper="-1.0"'])
+def test_a_joint_range_that_is_not_a_range_is_one_line_at_import(tmp_path: Path, bad: str) -> None:
+    model = tmp_path / "bad_range.urdf"
+    model.write_text(humanoid_urdf().replace('lower="-1.5" upper="1.5"', bad, 1))
+    with pytest.raises(ConfigError, match="neck_yaw: range .* is not a range") as e:
+        import_robot(model, tmp_path / "out", servo_models={"*": SERVO})
+    assert "\n" not in str(e.value) and not (tmp_path / "out").exists()

@@ -102,6 +102,10 @@ def joint_ranges(
         if name in passive:  # the linkage moves it: no servo limit to reconcile
             continue
         model_range = (float(m.jnt_range[j, 0]), float(m.jnt_range[j, 1])) if m.jnt_limited[j] else None
+        tag = limit_tags.get(name, {})
+        written = model_range or ((tag["lower"], tag["upper"]) if "lower" in tag and "upper" in tag else None)
+        if written is not None and not (math.isfinite(written[0]) and math.isfinite(written[1]) and written[0] < written[1]):
+            raise ConfigError(f"{source}: joint {name}: range [{written[0]}, {written[1]}] is not a range (finite numbers, min below max)")
         why = _placeholder(*model_range, limit_tags.get(name, {})) if model_range else ""
         if why:
             placeholders.append(f"{name} ({why})")
