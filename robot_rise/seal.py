@@ -14,8 +14,12 @@ from __future__ import annotations
 
 import hashlib
 import json
+from typing import Any
 
-from robot_rise.trajectory import Trajectory, trajectory_to_dict
+import numpy as np
+
+from robot_rise.posture import posture_to_dict
+from robot_rise.trajectory import TRAJECTORY_FORMAT, Trajectory, jsonable, rounded_as_written
 
 __all__ = ["SEAL_KEY", "SEAL_FORMAT", "SEALED_REPORT_KEYS", "seal_of", "sealed", "seal_problem"]
 
@@ -42,15 +46,37 @@ SEALED_REPORT_KEYS = (
 )
 
 
+def _plain(x: Any) -> Any:
+    """json.dumps's fallback for numpy values in an in-memory report (as the file writes them)."""
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.bool_):
+        return bool(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    raise TypeError(f"{type(x).__name__} is not a report value")
+
+
 def seal_of(trajectory: Trajectory) -> str:
     """The SHA-256 (hex) of the targets, root, joint order, start and proof entries, as written to file."""
-    written = trajectory_to_dict(trajectory)
+    tr = trajectory
+    report = {k: tr.report[k] for k in SEALED_REPORT_KEYS if k in tr.report}
     judged = {
         "seal_format": SEAL_FORMAT,
-        **{k: written.get(k) for k in ("format", "robot", "joint_names", "t", "q", "root", "start")},
-        "report": {k: written["report"][k] for k in SEALED_REPORT_KEYS if k in written["report"]},
+        "format": TRAJECTORY_FORMAT,
+        "robot": tr.robot,
+        "joint_names": list(tr.joint_names),
+        "t": rounded_as_written(tr.t),
+        "q": rounded_as_written(tr.q),
+        "root": None if tr.root is None else rounded_as_written(tr.root),
+        "start": posture_to_dict(tr.start),
+        "report": report,
     }
-    text = json.dumps(judged, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    try:  # the report's plain JSON values dump fast; NaN and infinity are written as null, as the file does
+        text = json.dumps(judged, sort_keys=True, separators=(",", ":"), allow_nan=False, default=_plain)
+    except ValueError:
+        judged["report"] = jsonable(report)
+        text = json.dumps(judged, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
 
 

@@ -27,7 +27,7 @@ from robot_rise.errors import FormatError
 from robot_rise.fileio import read_json, write_text_atomic
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict
 
-__all__ = ["Trajectory", "TRAJECTORY_FORMAT", "MAX_TRAJECTORY_S", "read_trajectory", "write_trajectory", "trajectory_from_dict", "trajectory_to_dict", "write_csv"]
+__all__ = ["Trajectory", "TRAJECTORY_FORMAT", "MAX_TRAJECTORY_S", "rounded_as_written", "jsonable", "read_trajectory", "write_trajectory", "trajectory_from_dict", "trajectory_to_dict", "write_csv"]
 
 TRAJECTORY_FORMAT = "robot-rise/trajectory@1"
 MAX_TRAJECTORY_S = 600.0  # a file lasting longer is not a get-up (rises last under 20 s): refused on reading, before any replay
@@ -107,14 +107,25 @@ def trajectory_to_dict(tr: Trajectory) -> dict[str, Any]:
         "format": TRAJECTORY_FORMAT,
         "robot": tr.robot,
         "joint_names": list(tr.joint_names),
-        "t": [round(float(x), 6) for x in tr.t],
-        "q": [[round(float(x), 6) for x in row] for row in tr.q],
+        "t": rounded_as_written(tr.t),
+        "q": rounded_as_written(tr.q),
         "start": posture_to_dict(tr.start),
         "report": _jsonable(tr.report),
     }
     if tr.root is not None:
-        obj["root"] = [[round(float(x), 6) for x in row] for row in tr.root]
+        obj["root"] = rounded_as_written(tr.root)
     return obj
+
+
+def rounded_as_written(a: np.ndarray) -> list:
+    """Times, angles and root rows as the file keeps them: to 6 decimals (1 us, 1 urad), as plain
+    floats; the one rounding the file and its seal (:mod:`robot_rise.seal`) share."""
+    return np.round(np.asarray(a, dtype=float), 6).tolist()
+
+
+def jsonable(x: Any) -> Any:
+    """A report value as the file writes it: numpy arrays and numbers as lists and plain numbers, NaN and infinity as null."""
+    return _jsonable(x)
 
 
 def _jsonable(x: Any) -> Any:
@@ -135,9 +146,12 @@ def _jsonable(x: Any) -> Any:
 
 
 def _holds_non_numbers(x: Any) -> bool:
-    if isinstance(x, list):
-        return any(_holds_non_numbers(v) for v in x)
-    return isinstance(x, bool) or not isinstance(x, (int, float))
+    """Text, booleans or nulls among a field's numbers (numpy's float conversion would take "0.1")."""
+    try:
+        kind = np.asarray(x).dtype.kind
+    except ValueError:  # ragged rows: the shape check names them
+        return False
+    return kind not in "fiu"
 
 
 def trajectory_from_dict(obj: Any, *, where: str = "trajectory") -> Trajectory:

@@ -96,6 +96,22 @@ class MotionLibrary:
         raise FormatError(f"no motion {name!r} in {self.directory}; motions: {', '.join(self.names())}")
 
 
+_SEALS_HELD: set[tuple[str, int, int]] = set()  # (file, mtime ns, size) whose seal held: checked once per process
+
+
+def _seal_problem_of_file(path: Path, tr: Trajectory) -> str:
+    """:func:`robot_rise.seal.seal_problem` of a motion file, remembered while the file is unchanged
+    (a guard or a test session loads its library many times)."""
+    info = path.stat()
+    key = (str(path.resolve()), info.st_mtime_ns, info.st_size)
+    if key in _SEALS_HELD:
+        return ""
+    problem = seal_problem(tr)
+    if not problem:
+        _SEALS_HELD.add(key)
+    return problem
+
+
 def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name: str = "op3", sealed_only: bool = True) -> MotionLibrary:
     """Read a library directory (default: the shipped one) and validate every file it names.
 
@@ -135,7 +151,7 @@ def load_library(directory: str | os.PathLike[str] | None = None, *, robot_name:
         if row["lying"] not in LYING_KINDS:
             raise FormatError(f"{where}: lying is {row['lying']!r}; expected one of {', '.join(LYING_KINDS)}")
         tr = read_trajectory(root / str(row["trajectory"]))
-        problem = seal_problem(tr) if sealed_only and tr.report.get("proven") is True else ""
+        problem = _seal_problem_of_file(root / str(row["trajectory"]), tr) if sealed_only and tr.report.get("proven") is True else ""
         if problem:
             raise FormatError(f"{root / str(row['trajectory'])}: motion {name!r} is not what was proven: {problem}",
                               hint="re-prove the library: robot-rise library prove --dir DIR (or build it again)")
