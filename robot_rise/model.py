@@ -15,7 +15,6 @@ import math
 import os
 import tomllib
 from dataclasses import dataclass, field
-from xml.etree import ElementTree
 from functools import cached_property
 from pathlib import Path
 
@@ -25,6 +24,8 @@ import numpy as np
 from robot_rise.constants import ENVELOPE_MARGIN, METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
 from robot_rise.errors import ConfigError, SceneError, mujoco_reason
 from robot_rise.linkage import Linkage, close_loops, linkage_of
+from robot_rise.model_files import model_files
+from robot_rise.tendons import attach_tendons, detach_tendons
 from robot_rise.paths import default_robot_dir, scene_path
 from robot_rise.roles import JointRole, RoleMap
 from robot_rise.servo import ROBOT_SERVO_MODELS_FILE, ServoDatasheet, servo_datasheet
@@ -212,54 +213,6 @@ class Robot:
             h.update(os.path.relpath(path, self.directory).encode())
             h.update(path.read_bytes())
         return h.hexdigest()
-
-
-def model_files(xml_path: str | os.PathLike[str]) -> tuple[Path, ...]:
-    """Every file an MJCF loads besides itself, sorted: included XML, meshes, skins, height fields, textures.
-
-    Paths resolve as MuJoCo resolves them: an ``<include>`` relative to the main file's directory
-    (else to the including file's), assets relative to the compiler's ``meshdir`` (meshes, skins,
-    height fields) or ``texturedir`` (textures), themselves relative to the main file's directory.
-
-    Raises:
-        ConfigError: the MJCF cannot be read, or a file it loads is missing.
-    """
-    main = Path(xml_path).resolve()
-    files: set[Path] = set()
-    pending = [main]
-    while pending:  # <include> elements, recursively (MjSpec inlines them without a trace)
-        current = pending.pop()
-        try:
-            tree = ElementTree.parse(current)
-        except (OSError, ElementTree.ParseError) as e:
-            raise ConfigError(f"{current}: cannot read MJCF: {e}") from e
-        for el in tree.iter("include"):
-            name = el.get("file", "")
-            path = next((p for p in (main.parent / name, current.parent / name) if p.is_file()), main.parent / name)
-            if path not in files:
-                files.add(path)
-                pending.append(path)
-    try:
-        spec = mujoco.MjSpec.from_file(str(main))
-    except Exception as e:  # mujoco raises ValueError with the parser message
-        raise ConfigError(f"{main}: cannot load MJCF: {mujoco_reason(e)}") from e
-
-    def asset(directory: str, name: str) -> Path:
-        if spec.strippath:
-            name = Path(name).name
-        return (main.parent / directory / name).resolve()
-
-    for element in (*spec.meshes, *spec.skins, *spec.hfields):
-        if element.file:
-            files.add(asset(spec.meshdir, element.file))
-    for texture in spec.textures:
-        for name in (texture.file, *texture.cubefiles):
-            if name:
-                files.add(asset(spec.texturedir, name))
-    missing = sorted(str(p) for p in files if not p.is_file())
-    if missing:
-        raise ConfigError(f"{main}: loads files that do not exist: {', '.join(missing)}")
-    return tuple(sorted(files))
 
 
 def _read_toml(path: Path, fmt: str) -> dict:
@@ -529,67 +482,6 @@ def model_index(m: mujoco.MjModel, robot: Robot) -> ModelIndex:
     )
 
 
-@dataclass(frozen=True)
-class _Tendon:
-    """A tendon of the robot file, kept by name across composition (a wrap's target cannot be
-    renamed once attached, so tendons are taken out before and made again after)."""
-
-    name: str
-    wraps: tuple[tuple[str, str, float, str], ...]  # (kind, target name, coef or divisor, side site)
-    settings: dict[str, object]
-
-
-_TENDON_SETTINGS = ("stiffness", "damping", "frictionloss", "armature", "margin", "width", "springlength", "range", "limited", "rgba", "group")
-
-
-def _detach_tendons(spec: mujoco.MjSpec) -> tuple[list[_Tendon], list[dict[str, object]]]:
-    """Take the tendons out of the robot's spec, and the tendon couplings that name them."""
-    couplings = []
-    for eq in list(spec.equalities):
-        if eq.type == mujoco.mjtEq.mjEQ_TENDON:
-            couplings.append({k: getattr(eq, k) for k in ("name", "name1", "name2", "data", "solref", "solimp", "active")})
-            spec.delete(eq)
-    out = []
-    for t in list(spec.tendons):
-        wraps = []
-        for k in range(len(t.path)):
-            w = t.path[k]
-            target = w.target
-            kind = {mujoco.mjtWrap.mjWRAP_JOINT: "joint", mujoco.mjtWrap.mjWRAP_SITE: "site", mujoco.mjtWrap.mjWRAP_PULLEY: "pulley"}.get(
-                w.type, "geom"
-            )
-            weight = float(w.coef) if kind == "joint" else float(w.divisor) if kind == "pulley" else 0.0
-            wraps.append((kind, target.name if target is not None else "", weight, w.sidesite.name if getattr(w, "sidesite", None) is not None else ""))
-        settings = {k: getattr(t, k) for k in _TENDON_SETTINGS if hasattr(t, k)}
-        out.append(_Tendon(t.name, tuple(wraps), settings))
-        spec.delete(t)
-    return out, couplings
-
-
-def _attach_tendons(spec: mujoco.MjSpec, detached: tuple[list[_Tendon], list[dict[str, object]]]) -> None:
-    tendons, couplings = detached
-    for tendon in tendons:
-        t = spec.add_tendon()
-        t.name = tendon.name
-        for k, v in tendon.settings.items():
-            setattr(t, k, v)
-        for kind, target, weight, side in tendon.wraps:
-            if kind == "joint":
-                t.wrap_joint(target, weight)
-            elif kind == "site":
-                t.wrap_site(target)
-            elif kind == "pulley":
-                t.wrap_pulley(weight)
-            else:
-                t.wrap_geom(target, side)
-    for coupling in couplings:
-        eq = spec.add_equality()
-        eq.type = mujoco.mjtEq.mjEQ_TENDON
-        eq.objtype = mujoco.mjtObj.mjOBJ_TENDON
-        for k, v in coupling.items():
-            setattr(eq, k, v)
-
-
 def compose(
     robot: Robot,
     scene: str | os.PathLike[str] | None = "flat",
@@ -628,7 +520,7 @@ def compose(
             raise SceneError(f"cannot read scene {path}: {mujoco_reason(e)}", hint="shipped scenes: flat, beam, low_bed, table, slope, icy, soft") from e
         # Attach under a temporary prefix, then strip it: names stay the robot's own and MuJoCo
         # does not warn about an empty prefix.
-        tendons = _detach_tendons(rspec)
+        tendons = detach_tendons(rspec)
         frame = spec.worldbody.add_frame()
         frame.attach_body(rspec.body(robot.root_body), _ATTACH_PREFIX, "")
         for elements in (spec.bodies, spec.joints, spec.geoms, spec.sites, spec.cameras):
@@ -644,7 +536,7 @@ def compose(
         for eq in spec.equalities:
             eq.name = eq.name.removeprefix(_ATTACH_PREFIX)
             eq.name1, eq.name2 = eq.name1.removeprefix(_ATTACH_PREFIX), eq.name2.removeprefix(_ATTACH_PREFIX)
-        _attach_tendons(spec, tendons)
+        attach_tendons(spec, tendons)
     if voltage_v is None:
         voltage_v = robot.supply_voltage_v
     if with_actuators:
