@@ -34,7 +34,7 @@ bench: $(BIN)/robot-rise
 
 bench-planning: $(BIN)/robot-rise
 	$(BIN)/pip install --quiet -e '.[bench]'
-	$(BIN)/python -m robot_rise.bench.planning --seed 1 --budget 10 --out out/bench_planning.json
+	$(BIN)/robot-rise bench planning --seed 1 --budget 10 --out out/bench_planning.json
 
 clean:
 	rm -rf $(VENV) out

@@ -4,6 +4,11 @@ Addresses and sizes follow the ROBOTIS e-manual pages of each model (X series, P
 MX-28 with the "(2.0)" firmware inherits the X layout). See ``../shared/facts/dynamixel.md``.
 Addresses below 64 are EEPROM: writable only with Torque Enable = 0.
 
+Register layout and factory defaults only: a model's physical figures (stall torque, no-load
+speed, gear ratio, each with its datasheet source) are the servo catalog's
+(``configs/servos/catalog.toml``, read by :mod:`robot_files.servo_catalog`); the emulator takes
+its load model from there.
+
 Units of raw values (what ``drivers`` converts, nothing else does):
     position: 4096 ticks per revolution, 2048 = centre.
     velocity: 0.229 rev/min per unit.
@@ -199,8 +204,6 @@ class ControlTable:
             Present Load (0.1 % units) at that address instead.
         operating_modes: the values ``operating_mode`` accepts.
         fast_sync_read_min_firmware: first firmware version answering Fast Sync Read.
-        stall_torque_nm: datasheet stall torque at 12 V [N m] (for the emulator's load model).
-        no_load_speed_rad_s: datasheet no-load speed at 12 V [rad/s].
         protocol: the Dynamixel protocol this table is spoken in (2.0, or 1.0 for the AX, RX
             and MX (1.0 firmware) tables of :mod:`drivers.control_table1`).
         center_ticks: position value of the shaft's zero (2048 on 4096-tick models, 512 on AX/RX).
@@ -219,8 +222,6 @@ class ControlTable:
     current_unit_a: float | None
     operating_modes: frozenset[int]
     fast_sync_read_min_firmware: int = 45
-    stall_torque_nm: float = 4.1
-    no_load_speed_rad_s: float = 46 * 2 * math.pi / 60
     protocol: float = 2.0
     center_ticks: int = CENTER_TICKS
     max_ticks: int = TICKS_PER_REV - 1
@@ -270,8 +271,6 @@ def _table(
     defaults: Mapping[str, int],
     current_unit_a: float | None,
     operating_modes: frozenset[int],
-    stall_torque_nm: float,
-    no_load_rpm: float,
 ) -> ControlTable:
     rows = {}
     for r in _x_series_rows():
@@ -312,8 +311,6 @@ def _table(
         defaults=MappingProxyType({k: v for k, v in base_defaults.items() if k in rows}),
         current_unit_a=current_unit_a,
         operating_modes=operating_modes,
-        stall_torque_nm=stall_torque_nm,
-        no_load_speed_rad_s=no_load_rpm * 2 * math.pi / 60,
     )
 
 
@@ -325,14 +322,12 @@ _TABLES: dict[str, ControlTable] = {
             defaults={"current_limit": 1193, "goal_current": 1193, "position_p_gain": 800,
                       "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=4.1, no_load_rpm=46,
         ),
         _table(
             "XM540-W270", 1120,
             defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 900,
                       "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=10.6, no_load_rpm=30,
         ),
         _table(
             "XL430-W250", 1060,
@@ -341,7 +336,6 @@ _TABLES: dict[str, ControlTable] = {
                       "velocity_i_gain": 1000, "velocity_p_gain": 100, "max_voltage_limit": 140,
                       "min_voltage_limit": 60, "temperature_limit": 72},
             current_unit_a=None, operating_modes=frozenset({1, 3, 4, 16}),
-            stall_torque_nm=1.5, no_load_rpm=61,
         ),
         _table(
             "MX-28(2.0)", 30,
@@ -349,38 +343,33 @@ _TABLES: dict[str, ControlTable] = {
             defaults={"position_p_gain": 850, "velocity_limit": 230, "velocity_i_gain": 1920,
                       "velocity_p_gain": 100, "max_voltage_limit": 160, "min_voltage_limit": 95},
             current_unit_a=None, operating_modes=frozenset({1, 3, 4, 16}),
-            stall_torque_nm=2.5, no_load_rpm=55,
         ),
         # Model numbers: ROBOTIS e-manual control tables (XH430-W350 1000, XH540-W270 1100,
         # MX-64(2.0) 311 = 0x0137, MX-106(2.0) 321 = 0x0141; the DYNAMIXEL SDK's model lists agree).
-        # Current units: XH430 1.34 mA, XH540 2.69 mA, MX(2.0) 3.36 mA; figures at 12 V as in the catalog.
+        # Current units: XH430 1.34 mA, XH540 2.69 mA, MX(2.0) 3.36 mA.
         _table(
             "XH430-W350", 1000,
             defaults={"current_limit": 648, "goal_current": 648, "position_p_gain": 900,
                       "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00134, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=3.4, no_load_rpm=30,
         ),
         _table(
             "XH540-W270", 1100,
             defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 800,
                       "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00269, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=9.9, no_load_rpm=39,
         ),
         _table(
             "MX-64(2.0)", 311,
             defaults={"current_limit": 1941, "goal_current": 1941, "position_p_gain": 850,
                       "velocity_limit": 285, "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00336, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=6.0, no_load_rpm=63,
         ),
         _table(
             "MX-106(2.0)", 321,
             defaults={"current_limit": 2047, "goal_current": 2047, "position_p_gain": 850,
                       "velocity_limit": 210, "velocity_i_gain": 1920, "velocity_p_gain": 100},
             current_unit_a=0.00336, operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-            stall_torque_nm=8.4, no_load_rpm=45,
         ),
     )
 }

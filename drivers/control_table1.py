@@ -134,8 +134,8 @@ def _rows(mx: bool, current: bool) -> list["Register"]:
     return sorted(rows, key=lambda r: r.address)
 
 
-def _table(model: str, model_number: int, *, family: str, defaults: Mapping[str, int], stall_torque_nm: float,
-           no_load_rpm: float, source: str, current: bool = False) -> "ControlTable":
+def _table(model: str, model_number: int, *, family: str, defaults: Mapping[str, int], source: str,
+           current: bool = False) -> "ControlTable":
     from drivers.control_table import ControlTable
 
     mx = family == "mx"
@@ -177,8 +177,6 @@ def _table(model: str, model_number: int, *, family: str, defaults: Mapping[str,
         current_unit_a=None,  # Present Load (0.1 %) only; MX-64/106 Current (68) is not read
         operating_modes=frozenset(),  # joint mode is set by the angle limits, not a register
         fast_sync_read_min_firmware=1 << 30,  # no Fast Sync Read on 1.0
-        stall_torque_nm=stall_torque_nm,
-        no_load_speed_rad_s=no_load_rpm * _RPM,
         protocol=1.0,
         center_ticks=center,
         max_ticks=4095 if mx else 1023,
@@ -193,24 +191,21 @@ def _table(model: str, model_number: int, *, family: str, defaults: Mapping[str,
 _EMANUAL = "https://emanual.robotis.com/docs/en/dxl/"
 # Model numbers: the e-manual control tables (AX-12A 12, AX-18A 18, RX-28 28, RX-64 64, MX-28 29,
 # MX-64 310, MX-106 320; the DYNAMIXEL SDK's model lists agree). Stall torque and no-load speed
-# at 12 V where the e-manual gives 12 V (the emulator's load model); RX at their own rows scaled
-# to 12 V in proportion (a DC motor), as the catalog (configs/servos/catalog.toml) does.
+# are the servo catalog's (configs/servos/catalog.toml), not these tables'.
 TABLES_1: Mapping[str, "ControlTable"] = MappingProxyType({t.model: t for t in (
-    _table("AX-12A", 12, family="ax", defaults={"baud_rate": 1}, stall_torque_nm=1.5, no_load_rpm=59,
+    _table("AX-12A", 12, family="ax", defaults={"baud_rate": 1},
            source=_EMANUAL + "ax/ax-12a/#control-table"),
-    _table("AX-18A", 18, family="ax", defaults={"baud_rate": 1}, stall_torque_nm=1.8, no_load_rpm=97,
+    _table("AX-18A", 18, family="ax", defaults={"baud_rate": 1},
            source=_EMANUAL + "ax/ax-18a/#control-table"),
     _table("RX-28", 28, family="ax", defaults={"max_voltage_limit": 190, "temperature_limit": 80},
-           stall_torque_nm=3.7 * 12.0 / 18.5, no_load_rpm=79.4 * 12.0 / 18.5,
            source=_EMANUAL + "rx/rx-28/#control-table"),
     _table("RX-64", 64, family="ax", defaults={"max_voltage_limit": 190, "temperature_limit": 80},
-           stall_torque_nm=6.3 * 12.0 / 18.0, no_load_rpm=63.7 * 12.0 / 18.0,
            source=_EMANUAL + "rx/rx-64/#control-table"),
-    _table("MX-28(1.0)", 29, family="mx", defaults={}, stall_torque_nm=2.5, no_load_rpm=55,
+    _table("MX-28(1.0)", 29, family="mx", defaults={},
            source=_EMANUAL + "mx/mx-28/#control-table"),
-    _table("MX-64(1.0)", 310, family="mx", defaults={}, stall_torque_nm=6.0, no_load_rpm=63, current=True,
+    _table("MX-64(1.0)", 310, family="mx", defaults={}, current=True,
            source=_EMANUAL + "mx/mx-64/#control-table"),
-    _table("MX-106(1.0)", 320, family="mx", defaults={}, stall_torque_nm=8.4, no_load_rpm=45, current=True,
+    _table("MX-106(1.0)", 320, family="mx", defaults={}, current=True,
            source=_EMANUAL + "mx/mx-106/#control-table"),
 )})
 # On a Protocol 1.0 bus the MX names mean the 1.0 firmware; "AX-12" (the older name) is the AX-12A.

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from robot_files.errors import HintedError
+
 __all__ = [
     "DriverError",
     "ServoMapError",
@@ -22,16 +24,12 @@ __all__ = [
 ]
 
 
-class DriverError(Exception):
+class DriverError(HintedError):
     """Root of every error ``drivers`` raises on purpose.
 
     Attributes:
         hint: one line telling the operator what to do about it (may be empty).
     """
-
-    def __init__(self, message: str, *, hint: str = "") -> None:
-        super().__init__(message)
-        self.hint = hint
 
 
 class ServoMapError(DriverError):

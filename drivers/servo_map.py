@@ -8,12 +8,18 @@ This is the only place where joint angles become servo angles and ticks:
 ``[bus] protocol`` is 2.0 (default) or 1.0; it selects the control tables (``MX-28`` on a 1.0
 bus is the MX-28 with its 1.0 firmware) and, in :mod:`drivers.session`, the bus driver. A 1.0
 bus may mix models (MX and AX, as the Poppy Humanoid's MX-28/MX-64 body and AX-18A head).
+
+The file has one reader, :func:`robot_files.servo_map.read_servo_map` (the robot's simulation
+reads it there too): :class:`BusSpec`, :class:`ServoSpec` and :class:`ServoMap` are its values
+with what only the bus knows on top: the control table of each model on this protocol, the
+protocol's baud rates, limits that fit in ticks. A row without ``min``/``max`` gets
+``DEFAULT_LIMIT_RAD`` here (a bus rig's map); a robot directory's map must give them.
 """
 
 from __future__ import annotations
 
-import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -24,6 +30,16 @@ from numpy.typing import NDArray
 from drivers.control_table import BAUD_INDEX_BY_RATE, ControlTable, control_table
 from drivers.control_table1 import BAUD_INDEX_BY_RATE_1
 from drivers.errors import ControlTableError, ServoMapError
+from robot_files.errors import RobotFileError
+from robot_files.servo_map import (
+    DEFAULT_LIMIT_RAD,
+    SERVO_MAP_FORMAT,
+    BusSettings,
+    ServoMapFile,
+    ServoRow,
+    parse_servo_map_data,
+    read_servo_map,
+)
 
 __all__ = [
     "SERVO_MAP_FORMAT",
@@ -35,44 +51,41 @@ __all__ = [
     "with_protocol",
 ]
 
-SERVO_MAP_FORMAT = "robot-rise/servos@1"
-_DEFAULT_LIMIT_RAD = 3.14  # [rad] default joint limit: just inside one turn of position mode
 _SUPPORTED_BAUDS = tuple(BAUD_INDEX_BY_RATE)
 _SUPPORTED_BAUDS_1 = tuple(sorted(BAUD_INDEX_BY_RATE_1))
-PROTOCOLS = (1.0, 2.0)  # the Dynamixel protocols [bus] protocol may name
+
+
+@contextmanager
+def _as_servo_map_error() -> Iterator[None]:
+    """The file reader's errors as ``ServoMapError`` (drivers' callers catch their own errors)."""
+    try:
+        yield
+    except RobotFileError as e:
+        raise ServoMapError(str(e), hint=e.hint) from None
 
 
 @dataclass(frozen=True)
-class BusSpec:
-    """Bus settings.
+class BusSpec(BusSettings):
+    """Bus settings (:class:`robot_files.servo_map.BusSettings`) on a Dynamixel bus.
 
     Attributes:
-        baud_rate: [bit/s].
+        baud_rate: [bit/s], one the protocol has.
         return_delay_time_us: servo reply delay [us] (control table unit is 2 us).
         supply_voltage_v: the servos' supply [V] (e.g. 14.8 for a 4S LiPo): what the robot's
-            simulation models them at (robot_rise.model reads the same key).
+            simulation models them at.
         protocol: Dynamixel protocol of the bus, 2.0 or 1.0.
+        extra: the file's other [bus] settings, kept as given.
     """
 
-    baud_rate: int = 1_000_000
-    return_delay_time_us: float = 0.0
-    supply_voltage_v: float = 12.0
-    protocol: float = 2.0
-
     def __post_init__(self) -> None:
-        if self.protocol not in PROTOCOLS:
-            raise ServoMapError(f"protocol {self.protocol} is not a Dynamixel protocol",
-                                hint="use protocol = 2.0 or protocol = 1.0")
+        with _as_servo_map_error():
+            super().__post_init__()
         bauds = _SUPPORTED_BAUDS_1 if self.protocol == 1.0 else _SUPPORTED_BAUDS
         if self.baud_rate not in bauds:
             raise ServoMapError(
                 f"baud_rate {self.baud_rate} is not a Dynamixel Protocol {self.protocol:.1f} baud rate",
                 hint="use one of " + ", ".join(map(str, bauds)),
             )
-        if not 0 <= self.return_delay_time_us <= 508:
-            raise ServoMapError(f"return_delay_time_us {self.return_delay_time_us} outside 0..508")
-        if not 5.0 <= self.supply_voltage_v <= 30.0:  # as robot_rise.model.SUPPLY_RANGE_V (drivers import no core)
-            raise ServoMapError(f"supply_voltage_v {self.supply_voltage_v} outside 5..30 V")
 
     @property
     def baud_index(self) -> int:
@@ -86,8 +99,8 @@ class BusSpec:
 
 
 @dataclass(frozen=True)
-class ServoSpec:
-    """One servo of the map.
+class ServoSpec(ServoRow):
+    """One servo of the map (a :class:`robot_files.servo_map.ServoRow` on a bus).
 
     Attributes:
         id: bus ID 0..252.
@@ -101,22 +114,11 @@ class ServoSpec:
             ``model`` names.
     """
 
-    id: int
-    joint: str
-    model: str
-    direction: int = 1
-    zero_offset: float = 0.0
-    min: float = -_DEFAULT_LIMIT_RAD
-    max: float = _DEFAULT_LIMIT_RAD
     protocol: float = 2.0
 
     def __post_init__(self) -> None:
-        if not 0 <= self.id <= 252:
-            raise ServoMapError(f"servo id {self.id} outside 0..252 (joint {self.joint!r})")
-        if self.direction not in (1, -1):
-            raise ServoMapError(f"direction of servo {self.id} must be 1 or -1, not {self.direction}")
-        if not self.min < self.max:
-            raise ServoMapError(f"servo {self.id} ({self.joint}): min {self.min} must be < max {self.max}")
+        with _as_servo_map_error():
+            super().__post_init__()
         try:
             table = control_table(self.model, self.protocol)
         except ControlTableError as e:
@@ -132,11 +134,6 @@ class ServoSpec:
     @property
     def table(self) -> ControlTable:
         return control_table(self.model, self.protocol)
-
-    @property
-    def label(self) -> str:
-        """How messages name this servo: ``joint (id N)``."""
-        return f"{self.joint} (id {self.id})"
 
     def to_servo_frame(self, angle_rad: float) -> float:
         """Servo-frame angle [rad] (the shaft's own, 0 at 2048 ticks) for joint angle ``angle_rad``."""
@@ -164,7 +161,7 @@ class ServoSpec:
 
 
 @dataclass(frozen=True)
-class ServoMap:
+class ServoMap(ServoMapFile):
     """All servos of one bus, in file order.
 
     Attributes:
@@ -179,14 +176,8 @@ class ServoMap:
     servos: tuple[ServoSpec, ...]
 
     def __post_init__(self) -> None:
-        if not self.servos:
-            raise ServoMapError("servo map has no [[servo]] rows")
-        ids = [s.id for s in self.servos]
-        joints = [s.joint for s in self.servos]
-        for what, values in (("id", ids), ("joint", joints)):
-            dup = sorted({v for v in values if values.count(v) > 1}, key=str)
-            if dup:
-                raise ServoMapError(f"duplicate servo {what}(s) in servo map: {dup}")
+        with _as_servo_map_error():
+            super().__post_init__()
         other = [s.label for s in self.servos if s.protocol != self.bus.protocol]
         if other:
             raise ServoMapError(f"servo(s) {other} are specified for another protocol than the bus "
@@ -290,67 +281,41 @@ class ServoMap:
         return d * np.asarray(raw, dtype=float) * VELOCITY_UNIT_RAD_S
 
 
-def parse_servo_map(data: Mapping[str, object], *, source: str = "servo map") -> ServoMap:
-    """Build a :class:`ServoMap` from parsed TOML ``data``."""
-    fmt = data.get("format")
-    if fmt != SERVO_MAP_FORMAT:
-        raise ServoMapError(
-            f"{source}: format is {fmt!r}, expected {SERVO_MAP_FORMAT!r}",
-            hint="start the file with format = \"robot-rise/servos@1\"",
-        )
-    bus_raw = data.get("bus", {})
-    if not isinstance(bus_raw, Mapping):
-        raise ServoMapError(f"{source}: [bus] must be a table")
+def _on_the_bus(file: ServoMapFile, source: str) -> ServoMap:
+    """``file``'s values as the bus's (control tables, baud rates, ticks checked)."""
+    b = file.bus
     try:
-        protocol = float(bus_raw.get("protocol", 2.0))
-        bus = BusSpec(
-            baud_rate=int(bus_raw.get("baud_rate", 1_000_000)),
-            return_delay_time_us=float(bus_raw.get("return_delay_time_us", 0.0)),
-            supply_voltage_v=float(bus_raw.get("supply_voltage_v", 12.0)),
-            protocol=protocol,
-        )
-    except (TypeError, ValueError) as e:
-        raise ServoMapError(f"{source}: [bus] has a value that is not a number ({e})") from None
+        bus = BusSpec(b.baud_rate, b.return_delay_time_us, b.supply_voltage_v, b.protocol, b.extra)
     except ServoMapError as e:
         raise ServoMapError(f"{source}: [bus] {e}", hint=e.hint) from None
-    rows = data.get("servo")
-    if not isinstance(rows, list):
-        raise ServoMapError(f"{source}: no [[servo]] rows")
-    allowed = {"id", "joint", "model", "direction", "zero_offset", "min", "max"}
-    servos = []
-    for k, row in enumerate(rows):
-        if not isinstance(row, Mapping):
-            raise ServoMapError(f"{source}: servo row {k} is not a table")
-        unknown = set(row) - allowed
-        if unknown:
-            raise ServoMapError(f"{source}: servo row {k} has unknown key(s) {sorted(unknown)}",
-                                hint="allowed keys: " + ", ".join(sorted(allowed)))
-        for key in ("id", "joint", "model"):
-            if key not in row:
-                raise ServoMapError(f"{source}: servo row {k} lacks {key!r}")
-        servos.append(ServoSpec(
-            id=int(row["id"]), joint=str(row["joint"]), model=str(row["model"]),
-            direction=int(row.get("direction", 1)), zero_offset=float(row.get("zero_offset", 0.0)),
-            min=float(row.get("min", -_DEFAULT_LIMIT_RAD)), max=float(row.get("max", _DEFAULT_LIMIT_RAD)),
-            protocol=bus.protocol,
-        ))
-    return ServoMap(robot=str(data.get("robot", "")), bus=bus, servos=tuple(servos))
+    try:
+        servos = tuple(ServoSpec(s.id, s.joint, s.model, s.direction, s.zero_offset, s.min, s.max, protocol=bus.protocol)
+                       for s in file.servos)
+        return ServoMap(robot=file.robot, bus=bus, servos=servos)
+    except ServoMapError as e:
+        raise ServoMapError(f"{source}: {e}", hint=e.hint) from None
+
+
+def parse_servo_map(data: Mapping[str, object], *, source: str = "servo map") -> ServoMap:
+    """Build a :class:`ServoMap` from parsed TOML ``data`` (rows without limits get +-``DEFAULT_LIMIT_RAD``).
+
+    Raises:
+        ServoMapError: one line naming ``source`` and the problem.
+    """
+    with _as_servo_map_error():
+        file = parse_servo_map_data(data, source=source, default_limit_rad=DEFAULT_LIMIT_RAD)
+    return _on_the_bus(file, source)
 
 
 def load_servo_map(path: str | Path) -> ServoMap:
-    """Read a ``servos.toml`` file.
+    """Read a ``servos.toml`` file (:func:`robot_files.servo_map.read_servo_map`).
 
     Raises:
-        ServoMapError: missing file, TOML syntax error or invalid content.
+        ServoMapError: missing file, TOML syntax error or invalid content (one line naming the file).
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ServoMapError(f"servo map {path} not found", hint="pass the robot's servos.toml") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ServoMapError(f"{path}: {e}") from e
-    return parse_servo_map(data, source=str(path))
+    with _as_servo_map_error():
+        file = read_servo_map(path, default_limit_rad=DEFAULT_LIMIT_RAD)
+    return _on_the_bus(file, str(path))
 
 
 def with_protocol(servo_map: ServoMap, protocol: float,

@@ -265,8 +265,8 @@ def test_that_execute_runs_a_file_without_command_limits_with_a_warning(
 @pytest.fixture(scope="module")
 def predicted_arm(robot: Robot, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The arm motion, proven on the model, with its command limits and predicted positions."""
-    from robot_rise.filter import prove
-    from robot_rise.filter.prediction import predicted_positions
+    from robot_rise.proof import prove
+    from robot_rise.proof.prediction import predicted_positions
     from robot_rise.trajectory import read_trajectory
 
     path = _trajectory(robot, tmp_path_factory.mktemp("arm") / "arm.json", {})

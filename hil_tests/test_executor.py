@@ -545,25 +545,25 @@ def test_that_a_joint_blocked_mid_motion_stops_the_run_within_100_ms_of_leaving_
 def proven_get_up(tmp_path_factory: pytest.TempPathFactory):
     """``make demo``'s get-up (prone, seed 0) as the filter is to write it: conformed to the
     executor's limits, proven, with its command limits and predicted positions in the report."""
-    from robot_rise.filter import prove
+    from robot_rise.proof import prove
     from robot_rise.filter.command_limits import (
         COMMAND_LIMITS_KEY,
         command_limits_for,
         conform,
     )
-    from robot_rise.filter.prediction import (
+    from robot_rise.proof.prediction import (
         PREDICTED_KEY,
         PredictedPositions,
         predicted_positions,
     )
     from robot_rise.model import load_robot
-    from robot_rise.rise import rise
+    from robot_rise.rise import RiseOptions, rise
     from robot_rise.sampling import sample_lying
     from robot_rise.seal import sealed
     from robot_rise.trajectory import write_trajectory
 
     robot = load_robot()
-    result = rise(robot, sample_lying(robot, "prone", 1, 0).postures[0], seed=0)
+    result = rise(robot, sample_lying(robot, "prone", 1, 0).postures[0], RiseOptions(seed=0))
     assert result.proven, result.reason
     limits = command_limits_for(robot)
     traj = conform(result.trajectory, limits)

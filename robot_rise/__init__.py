@@ -18,7 +18,7 @@ Streaming a trajectory to servos lives in the sibling package ``drivers`` (``Dyn
 """
 
 from robot_rise.errors import RobotRiseError
-from robot_rise.filter import Proof, check
+from robot_rise.proof import Proof, check
 from robot_rise.model import Robot, load_robot
 from robot_rise.posture import Posture, read_posture, write_posture
 from robot_rise.rise import RiseResult, rise

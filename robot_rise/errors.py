@@ -7,26 +7,28 @@ result object, not an exception.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from robot_files.errors import HintedError, RobotFileError
+
 __all__ = [
     "RobotRiseError",
     "ConfigError",
     "FormatError",
     "PostureError",
     "SceneError",
+    "as_config_error",
     "mujoco_reason",
 ]
 
 
-class RobotRiseError(Exception):
+class RobotRiseError(HintedError):
     """Root of every error robot_rise raises on purpose.
 
     Attributes:
         hint: one line telling the user what to do about it (may be empty).
     """
-
-    def __init__(self, message: str, *, hint: str = "") -> None:
-        super().__init__(message)
-        self.hint = hint
 
 
 class ConfigError(RobotRiseError):
@@ -43,6 +45,16 @@ class PostureError(FormatError):
 
 class SceneError(ConfigError):
     """A scene file cannot be composed with the robot."""
+
+
+@contextmanager
+def as_config_error() -> Iterator[None]:
+    """Re-raise a :class:`robot_files.errors.RobotFileError` (servo map, servo catalog, TOML) as
+    :class:`ConfigError`, message and hint unchanged."""
+    try:
+        yield
+    except RobotFileError as e:
+        raise ConfigError(str(e), hint=e.hint) from None
 
 
 def mujoco_reason(error: BaseException) -> str:

@@ -2,18 +2,16 @@
 
 A robot directory holds ``robot.toml`` (format ``robot-rise/robot@1``: metric groups, limbs,
 sites), ``robot.xml`` (MJCF: bodies, joints with ranges, collision geoms, a ``stand`` keyframe,
-a free joint at the root) and ``servos.toml`` (format ``robot-rise/servos@1``: servo per joint).
-This is the only module that knows MJCF layout details. Nothing here names a joint of a
-particular robot.
+a free joint at the root) and ``servos.toml`` (format ``robot-rise/servos@1``: servo per joint,
+read by :func:`robot_files.servo_map.read_servo_map`, the reader ``drivers`` uses too). This is
+the only module that knows MJCF layout details. Nothing here names a joint of a particular robot.
 """
 
 from __future__ import annotations
 
 import hashlib
 import logging
-import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -21,8 +19,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from robot_files.servo_map import SERVO_MAP_FILE, SUPPLY_RANGE_V, SUPPLY_VOLTAGE_V, check_supply_voltage, read_servo_map
+from robot_files.toml_file import read_toml
 from robot_rise.constants import ENVELOPE_MARGIN, METRIC_GROUP_WEIGHTS, ROOT_ORIENTATION_WEIGHT
-from robot_rise.errors import ConfigError, SceneError, mujoco_reason
+from robot_rise.errors import ConfigError, SceneError, as_config_error, mujoco_reason
 from robot_rise.linkage import Linkage, close_loops, linkage_of
 from robot_rise.model_files import model_files
 from robot_rise.tendons import attach_tendons, detach_tendons
@@ -51,12 +51,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ROBOT_FORMAT = "robot-rise/robot@1"
-SERVOS_FORMAT = "robot-rise/servos@1"
 GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are obstacles
 GEOM_ROBOT, GEOM_GROUND, GEOM_OBSTACLE = 0, 1, 2  # ModelIndex.geom_kind values
 SIM_TIMESTEP_S = 0.002  # physics step: 500 Hz (issue 4 asks for >= 500 Hz)
-SUPPLY_VOLTAGE_V = 12.0  # servo supply a robot is modelled at unless its servo map gives one ([bus] supply_voltage_v)
-SUPPLY_RANGE_V = (5.0, 30.0)  # Dynamixels run on 5-24 V (XL330 5 V to MX/XH 14.8 V 4S LiPo, 24 V Pro): a typo guard
+# SUPPLY_VOLTAGE_V (the supply a robot is modelled at unless its servo map gives one) and
+# SUPPLY_RANGE_V (the typo guard on it) are the servo map format's: robot_files.servo_map.
 _ATTACH_PREFIX = "robot_rise:"
 
 
@@ -216,13 +215,8 @@ class Robot:
 
 
 def _read_toml(path: Path, fmt: str) -> dict:
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise ConfigError(f"missing file {path}", hint="a robot directory needs robot.toml, robot.xml and servos.toml") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML: {e}") from e
+    with as_config_error():
+        data = read_toml(path, "file", hint="a robot directory needs robot.toml, robot.xml and servos.toml")
     if data.get("format") != fmt:
         raise ConfigError(f"{path}: format is {data.get('format')!r}, expected {fmt!r}")
     return data
@@ -294,7 +288,7 @@ def load_robot(directory: str | os.PathLike[str] | None = None) -> Robot:
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) < 0:
             raise ConfigError(f"{root / 'robot.toml'}: site {s!r} is not in {xml_path.name}")
 
-    servos, supply_v, protocol = _load_servos(root / meta.get("servos", "servos.toml"), joint_names, lower, upper, meta.get("name", root.name), root / ROBOT_SERVO_MODELS_FILE)
+    servos, supply_v, protocol = _load_servos(root / meta.get("servos", SERVO_MAP_FILE), joint_names, lower, upper, root / ROBOT_SERVO_MODELS_FILE)
     roles = _load_roles(root / "robot.toml", meta.get("roles"), joint_names)
 
     # Key qpos in the robot-alone model: root (7) then hinges in order (jnt_qposadr increasing).
@@ -347,13 +341,8 @@ def _load_roles(path: Path, table: object, joint_names: tuple[str, ...]) -> Role
 
 def supply_voltage(value: object, where: str) -> float:
     """``value`` as a servo supply [V]; ConfigError naming ``where`` unless a number in ``SUPPLY_RANGE_V``."""
-    try:
-        volts = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        volts = math.nan
-    if not SUPPLY_RANGE_V[0] <= volts <= SUPPLY_RANGE_V[1]:
-        raise ConfigError(f"{where} must be a number of volts in {SUPPLY_RANGE_V[0]:g}..{SUPPLY_RANGE_V[1]:g}, not {value!r}")
-    return volts
+    with as_config_error():
+        return check_supply_voltage(value, where)
 
 
 def firmware_model(model: str, protocol: float, extra_catalog: Path | None = None) -> str:
@@ -370,51 +359,32 @@ def firmware_model(model: str, protocol: float, extra_catalog: Path | None = Non
 
 
 def _load_servos(
-    path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, robot: str, extra_catalog: Path
+    path: Path, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, extra_catalog: Path
 ) -> tuple[tuple[ServoAssignment, ...], float, float]:
-    """The servo per joint, in joint order, the supply voltage [V] and the protocol of ``[bus]``."""
-    data = _read_toml(path, SERVOS_FORMAT)
-    bus = data.get("bus", {})
-    if not isinstance(bus, dict):
-        raise ConfigError(f"{path}: [bus] must be a table")
-    supply_v = supply_voltage(bus.get("supply_voltage_v", SUPPLY_VOLTAGE_V), f"{path}: [bus] supply_voltage_v")
-    protocol = bus.get("protocol", 2.0)
-    if isinstance(protocol, bool) or protocol not in (1, 1.0, 2, 2.0):
-        raise ConfigError(f"{path}: [bus] protocol must be 1.0 or 2.0, not {protocol!r}")
-    rows = data.get("servo", [])
+    """The servo per joint, in joint order, the supply voltage [V] and the protocol of ``[bus]``.
+
+    The file is read by :func:`robot_files.servo_map.read_servo_map` (every row gives min and
+    max); here it must also fit the model: known joints, each one driven, limits inside the
+    model's ranges, models in the servo catalog.
+    """
+    with as_config_error():
+        smap = read_servo_map(path)
     by_joint: dict[str, ServoAssignment] = {}
-    ids: set[int] = set()
-    for row in rows:
-        try:
-            s = ServoAssignment(
-                id=int(row["id"]),
-                joint=str(row["joint"]),
-                model=str(row["model"]),
-                direction=int(row.get("direction", 1)),
-                zero_offset=float(row.get("zero_offset", 0.0)),
-                lower=float(row["min"]),
-                upper=float(row["max"]),
-            )
-        except (KeyError, TypeError, ValueError) as e:
-            raise ConfigError(f"{path}: servo row {row!r} is malformed ({e})") from e
+    for row in smap.servos:
+        s = ServoAssignment(row.id, row.joint, row.model, row.direction, row.zero_offset, row.min, row.max)
         if s.joint not in joint_names:
             raise ConfigError(f"{path}: servo {s.id} drives unknown joint {s.joint!r}; joints: {', '.join(joint_names)}")
-        if s.joint in by_joint or s.id in ids:
-            raise ConfigError(f"{path}: servo id {s.id} or joint {s.joint} appears twice")
-        if s.direction not in (-1, 1):
-            raise ConfigError(f"{path}: servo {s.id}: direction must be 1 or -1")
         i = joint_names.index(s.joint)
-        if s.lower < lower[i] - 1e-6 or s.upper > upper[i] + 1e-6 or s.lower >= s.upper:
+        if s.lower < lower[i] - 1e-6 or s.upper > upper[i] + 1e-6:
             raise ConfigError(
                 f"{path}: servo {s.id} ({s.joint}) limits [{s.lower}, {s.upper}] must lie inside the model range [{lower[i]}, {upper[i]}]"
             )
         servo_datasheet(s.model, extra_catalog=extra_catalog)  # raises on an unknown model
         by_joint[s.joint] = s
-        ids.add(s.id)
     missing = [j for j in joint_names if j not in by_joint]
     if missing:
         raise ConfigError(f"{path}: no servo for joints {', '.join(missing)}")
-    return tuple(by_joint[j] for j in joint_names), supply_v, float(protocol)
+    return tuple(by_joint[j] for j in joint_names), smap.bus.supply_voltage_v, smap.bus.protocol
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ File format (JSON), exactly::
     {"format": "robot-rise/posture@1", "robot": "op3", "root_pos": [x, y, z],
      "root_quat": [w, x, y, z], "joints": {"<joint>": radians, ...}}
 
-Joint limits: a posture read for a robot may lie up to ``LIMIT_CLAMP_TOLERANCE_RAD`` (two servo
+Joint limits: a posture read for a robot may lie up to ``LIMIT_CLAMP_TOLERANCE_RAD`` (four servo
 ticks) past a limit, as a servo resting on its stop reads; it is clamped into the limits with one
 warning line (:func:`admit_posture`). Further out is an error naming the joints.
 
@@ -53,10 +53,13 @@ log = logging.getLogger(__name__)
 
 POSTURE_FORMAT = "robot-rise/posture@1"
 QUAT_NORM_TOLERANCE = 1e-3  # |q| must be 1 within this to count as a unit quaternion
-# Joint angles may lie this far past a limit and are clamped into it [rad]: two ticks of a
-# 4096-tick-per-turn servo (Dynamixel XM430, 2 * 2 pi / 4096 = 3.07 mrad). A servo resting on its
-# stop reads up to one tick past it, and the angle's rounding may add another.
-LIMIT_CLAMP_TOLERANCE_RAD = 2 * 2 * math.pi / 4096
+# Joint angles may lie this far past a limit and are clamped into it [rad]: four ticks of a
+# 4096-tick-per-turn servo (Dynamixel XM430, 4 * 2 pi / 4096 = 6.14 mrad). A body resting on a
+# limb presses the joint onto its stop, where a real servo reads it too: another team's OP3 model
+# settled a shoulder 3.3 mrad past its limit (issue 40); a servo reads up to one tick past, the
+# angle's rounding may add another. The one tolerance of authoring, library build, rise, check,
+# execute and the guard (each admits a start through ``admit_posture`` / ``clamp_to_limits``).
+LIMIT_CLAMP_TOLERANCE_RAD = 4 * 2 * math.pi / 4096
 YAW_MIN_HORIZONTAL = 1e-3  # yaw_rad: an x axis with less horizontal length than this points up or down [unit]
 
 

@@ -10,7 +10,6 @@ the library's motions to the new body.
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -19,7 +18,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robot_rise.errors import ConfigError
+from robot_files.toml_file import read_toml, write_toml
+from robot_rise.errors import ConfigError, as_config_error
 from robot_rise.model import Robot, load_robot
 
 __all__ = ["BodyScale", "scale_robot"]
@@ -130,14 +130,14 @@ def scale_robot(
     tree.write(xml_out, encoding="unicode")
     _fix_stand_height(xml_out, robot)
     shutil.copy(robot.directory / "servos.toml", dst / "servos.toml")
-    meta = (robot.directory / "robot.toml").read_text()
-    new_name = name or f"{robot.name}_scaled"
-    meta = re.sub(r'(?m)^name = ".*"$', f'name = "{new_name}"', meta)
-    meta = re.sub(r'(?m)^library = ".*".*$', f'library = "{robot.library}"  # the source robot\'s motion library', meta)
-    if "library =" not in meta:
-        meta = meta.replace('format = "robot-rise/robot@1"\n', f'format = "robot-rise/robot@1"\nlibrary = "{robot.library}"\n')
-    meta = f"# Scaled from {robot.name}: arms x{scale.arms}, legs x{scale.legs}, torso x{scale.torso} (robot-rise robot scale).\n" + meta
-    (dst / "robot.toml").write_text(meta)
+    with as_config_error():  # robot.toml through the one TOML reader and writer: its values, renamed
+        meta = read_toml(robot.directory / "robot.toml", "file")
+        meta["name"] = name or f"{robot.name}_scaled"
+        meta["library"] = robot.library
+        write_toml(dst / "robot.toml", meta, comments=(
+            f"Scaled from {robot.name}: arms x{scale.arms}, legs x{scale.legs}, torso x{scale.torso} (robot-rise robot scale).",
+            "library: the source robot's motion library.",
+        ))
     return load_robot(dst)
 
 

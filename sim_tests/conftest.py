@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import pytest
 
-from robot_rise.filter import CACHE_ENV
+from robot_rise.proof import CACHE_ENV
 from robot_rise.model import Robot, load_robot
 from robot_rise.robot_import import ImportResult, import_robot
 

@@ -40,7 +40,7 @@ def test_adaptation_is_a_no_op_on_the_robot_the_strategies_were_written_for() ->
     every shipped strategy stands on it as written, so the search is never run there; except a
     momentum motion searched with its goals clamped into the envelope (``clamp_lead``), which
     stands only as the library authors it (clamped): its shipped motion is proven instead."""
-    from robot_rise.filter import Proof
+    from robot_rise.proof import Proof
     from robot_rise.library import load_library
 
     robot = load_robot()

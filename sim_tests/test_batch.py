@@ -26,13 +26,14 @@ from robot_rise.bench.batch import alive, check_store, process_tree
 from robot_rise.cli import main
 from robot_rise.errors import RobotRiseError
 from robot_rise.filter import FilterConfig
+from robot_rise.proof import ProofConfig
 from robot_rise.model import load_robot
 from robot_rise.posture import posture_to_dict, stand_posture
 from robot_rise.trajectory import read_trajectory
 
 pytest.importorskip("pyarrow")
 
-FAST = {"filter_config": FilterConfig(ensemble=False)}
+FAST = {"filter_config": FilterConfig(proof=ProofConfig(ensemble=False))}
 BATCH = dict(n=1, seed=3, kinds=("supine", "prone"), rise_options=FAST)
 VOLATILE = ("wall_s", "plan_s", "filter_s")  # timings differ from run to run
 
@@ -78,7 +79,7 @@ def test_task_ids_depend_on_every_input_and_on_nothing_else(tmp_path):
         make_tasks([robot], n=2, seed=0, kinds=("right",)),
         make_tasks([robot], n=2, seed=0, kinds=("left",), scenes=("slope",)),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options=FAST),
-        make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"filter_config": FilterConfig(envelope_margin=0.2)}),
+        make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"filter_config": FilterConfig(proof=ProofConfig(envelope_margin=0.2))}),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"budget_s": 10.0}),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"candidates": 1}),
         make_tasks([robot], n=2, seed=0, kinds=("left",), rise_options={"composed": True}),
@@ -100,7 +101,7 @@ def test_task_ids_depend_on_every_input_and_on_nothing_else(tmp_path):
 
 
 def test_a_composed_batch_proves_by_composition_and_the_whole_check_agrees(tmp_path):
-    from robot_rise.filter import COMPOSED_KEY, check
+    from robot_rise.proof import COMPOSED_KEY, check
 
     out = tmp_path / "composed"
     summary = run_batch(out=out, n=1, seed=3, kinds=("prone",), rise_options={"composed": True}, jobs=1)
@@ -115,7 +116,7 @@ def test_a_rerun_with_other_options_runs_again_instead_of_skipping(tmp_path):
     out = tmp_path / "s"
     assert run_batch(out=out, execute=_cheap, jobs=1, **BATCH).ran == 2
     assert run_batch(out=out, execute=_cheap, jobs=1, **BATCH).skipped == 2
-    other = {**BATCH, "rise_options": {"filter_config": FilterConfig(ensemble=False, envelope_margin=0.2)}}
+    other = {**BATCH, "rise_options": {"filter_config": FilterConfig(proof=ProofConfig(ensemble=False, envelope_margin=0.2))}}
     summary = run_batch(out=out, execute=_cheap, jobs=1, **other)
     assert (summary.skipped, summary.ran, summary.rows) == (0, 2, 4)
 
@@ -187,6 +188,7 @@ def _abort(progress):
     raise _Abort
 
 
+@pytest.mark.slow
 def test_a_batch_aborted_midway_and_resumed_has_the_rows_of_an_uninterrupted_one(reference, tmp_path):
     out = tmp_path / "resumed"
     with pytest.raises(_Abort):
@@ -243,6 +245,7 @@ def _sigkill_after_rows(store: Path, rows: int) -> None:
     assert not leftovers, leftovers
 
 
+@pytest.mark.slow
 def test_a_batch_sigkilled_twice_mid_run_and_resumed_has_the_rows_of_an_uninterrupted_one(tmp_path):
     """The CLI in a child process, SIGKILLed while a task is in flight (twice), then run again to the end."""
     store = tmp_path / "killed"
@@ -338,6 +341,7 @@ def test_export_writes_every_proven_trajectory_as_one_table(reference, tmp_path,
     assert mask.sum() < len(ids) or len(proven) == 1
 
 
+@pytest.mark.slow
 def test_ray_in_local_mode_gives_the_rows_of_the_local_pool(reference, tmp_path):
     pytest.importorskip("ray")
     out = tmp_path / "ray"

@@ -23,7 +23,7 @@ from robot_rise.filter.command_limits import (
     conform,
     match_command_limits,
 )
-from robot_rise.filter.prediction import (
+from robot_rise.proof.prediction import (
     PREDICTION_RATE_HZ,
     TILT_TOLERANCE_FLOOR_RAD,
     TOLERANCE_FLOOR_RAD,

@@ -1,4 +1,4 @@
-"""The composed ensemble proof (robot_rise.filter.composed): a library motion proven once from rest
+"""The composed ensemble proof (robot_rise.proof.composed): a library motion proven once from rest
 on its first targets, an approach proven online to arrive there at rest; rise(composed=True)."""
 
 from __future__ import annotations
@@ -8,11 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from robot_rise.filter import (
+
+from robot_rise.proof import ProofConfig
+from robot_rise.proof import (
     ARRIVAL_SETTLE_S,
     COMPOSED_KEY,
     MAX_WHOLE_REPLAYS,
-    FilterConfig,
     Proof,
     RestPose,
     check,
@@ -20,7 +21,7 @@ from robot_rise.filter import (
     prove_composed,
     settled_start,
 )
-from robot_rise.rise import RiseContext, rise
+from robot_rise.rise import RiseContext, RiseOptions, rise
 from robot_rise.sampling import sample_lying
 from robot_rise.sim.variants import ENSEMBLE
 
@@ -36,7 +37,7 @@ def context(robot) -> RiseContext:
 def composed_rise(robot, context):
     # prone_1_000 of the 300 protocol: the composed proof applies there
     start = sample_lying(robot, "prone", 1, 1).postures[0]
-    return start, rise(robot, start, seed=1, context=context, composed=True)
+    return start, rise(robot, start, RiseOptions(seed=1, composed=True), context=context)
 
 
 def test_settled_start_holds_the_first_targets_before_the_motion(context) -> None:
@@ -75,7 +76,7 @@ def test_an_arrival_elsewhere_or_a_reshaped_library_part_is_not_composed(robot, 
     join = tr.report["plan_rows"]
     rec = result.filter_result.recording
     nominal = Proof.from_dict(tr.report)
-    kw = dict(join_row=join, motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=FilterConfig())
+    kw = dict(join_row=join, motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=ProofConfig())
     # rest poses 1 cm higher than where the variants arrive: no variant arrives
     higher = dataclasses.replace(start_proof, rest=tuple(RestPose(r.root_quat_wxyz, r.root_z_m + 0.01, r.joints_rad) for r in start_proof.rest))
     found = prove_composed(nominal, rec, tr, start_proof=higher, **kw)
@@ -98,7 +99,7 @@ def test_a_few_variants_that_arrive_elsewhere_are_replayed_whole(robot, context,
     tr = result.trajectory
     rec = result.filter_result.recording
     nominal = Proof.from_dict(tr.report)
-    kw = dict(join_row=tr.report["plan_rows"], motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=FilterConfig())
+    kw = dict(join_row=tr.report["plan_rows"], motion_trajectory=motion.trajectory, start=start, replayer=context.ensemble(), config=ProofConfig())
     off = (2, 7)[:MAX_WHOLE_REPLAYS]  # their rest poses 1 cm higher: they arrive elsewhere
     rest = tuple(RestPose(r.root_quat_wxyz, r.root_z_m + 0.01, r.joints_rad) if k in off else r for k, r in enumerate(start_proof.rest))
     found = prove_composed(nominal, rec, tr, start_proof=dataclasses.replace(start_proof, rest=rest), **kw)
@@ -127,7 +128,7 @@ def test_when_no_candidate_composes_rise_proves_them_whole(robot, context, monke
         real = context.start_proof(context.library.get(MOTION))
         monkeypatch.setattr(fresh, "start_proof", lambda motion, config=None: dataclasses.replace(real, spread_proven=False))
     start = sample_lying(robot, "prone", 1, 1).postures[0]
-    result = rise(robot, start, seed=1, context=fresh, composed=True)
+    result = rise(robot, start, RiseOptions(seed=1, composed=True), context=fresh)
     assert result.proven, result.reason
     assert COMPOSED_KEY not in result.trajectory.report
     skipped = [a for a in result.attempts if a.skipped]  # the composed pass planned nothing
@@ -139,17 +140,17 @@ def test_a_start_proof_is_kept_on_disk_read_back_whole_and_proven_again_where_it
     import importlib
     import json
 
-    from robot_rise.filter import CACHE_ENV, START_PROOF_FORMAT, cache_directory, start_proof_key
+    from robot_rise.proof import CACHE_ENV, START_PROOF_FORMAT, cache_directory, start_proof_key
 
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     motion = context.library.get(MOTION)
     first = RiseContext.build(robot, "flat").start_proof(motion)
     files = list((tmp_path / "start_proofs").glob("*.json"))
-    config = FilterConfig(combined_variants=motion.combined_variants)
+    config = ProofConfig(combined_variants=motion.combined_variants)
     key = start_proof_key(robot, "flat", motion.name, motion.trajectory, motion.start, config)
     assert [f.stem for f in files] == [key] and json.loads(files[0].read_text())["format"] == START_PROOF_FORMAT
     # another process reads it: nothing proven again, the same proof
-    monkeypatch.setattr(importlib.import_module("robot_rise.rise"), "prove_start", lambda *a, **k: pytest.fail("proven again"))
+    monkeypatch.setattr(importlib.import_module("robot_rise.rise.context"), "prove_start", lambda *a, **k: pytest.fail("proven again"))
     again = RiseContext.build(robot, "flat").start_proof(motion)
     assert again.to_dict() == first.to_dict() and again.composable == first.composable
     # another margin, another motion timing: other keys

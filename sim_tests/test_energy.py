@@ -13,7 +13,7 @@ import pytest
 from robot_rise.constants import ENERGY_LOCAL_MINIMUM_PATIENCE, OUTPUT_SPACING_RAD
 from robot_rise.model import load_robot
 from robot_rise.planning import energy as energy_module
-from robot_rise.bench.energy import crossed_problems, straight_motion_is_illegal
+from robot_rise.bench.energy_problems import crossed_problems, straight_motion_is_illegal
 from robot_rise.planning.energy import (
     EnergyConfig,
     EnergyPlanner,
@@ -488,28 +488,30 @@ def _min_jerk(duration_s, amplitude, period_s=0.002):
 
 
 def test_that_jerk_at_a_common_duration_is_exact_for_a_uniformly_slower_motion():
-    from robot_rise.bench import energy as be
+    from robot_rise.bench.energy_metrics import common_duration_jerk, dimensionless_jerk
+    from robot_rise.planning.timing import integrated_squared_jerk
 
     amp = np.array([1.0, -0.5, 0.2])
     t1, q1 = _min_jerk(1.0, amp)
     t2, q2 = _min_jerk(2.0, amp)
-    j1, j2 = be.integrated_squared_jerk(t1, q1), be.integrated_squared_jerk(t2, q2)
+    j1, j2 = integrated_squared_jerk(t1, q1), integrated_squared_jerk(t2, q2)
     assert j1 / j2 == pytest.approx(32.0, rel=0.05)  # the raw integral: slower is "smoother"
-    assert be.common_duration_jerk(j1, 1.0, 2.0) == pytest.approx(j2, rel=0.05)
-    assert be.dimensionless_jerk(t1, q1) == pytest.approx(be.dimensionless_jerk(t2, q2), rel=0.05)
+    assert common_duration_jerk(j1, 1.0, 2.0) == pytest.approx(j2, rel=0.05)
+    assert dimensionless_jerk(t1, q1) == pytest.approx(dimensionless_jerk(t2, q2), rel=0.05)
     # minimum-jerk closed form: the integral of q'''^2 is 720 A^2 / D^5 per joint
     assert j1 == pytest.approx(720.0 * float(np.sum(amp**2)), rel=0.05)
 
 
 def test_that_the_common_duration_is_the_longest_of_the_three_planners():
-    from robot_rise.bench import energy as be
+    from robot_rise.bench.energy import BenchRow
+    from robot_rise.bench.energy_tables import with_common_duration_jerk
 
     def row(planner, jerk, dur, solved=True):
-        return be.BenchRow(planner, "crossed", "crossed_legs", 0, solved, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, dur, "")
+        return BenchRow(planner, "crossed", "crossed_legs", 0, solved, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, dur, "")
 
     rows = [row("energy", 3200.0, 1.0), row("ompl_rrtconnect", 50.0, 2.0), row("rrt_blossom", 1.0, 9.0, solved=False),
             row("energy_raw", 100.0, 4.0)]
-    out = {r.planner: r for r in be.with_common_duration_jerk(rows)}
+    out = {r.planner: r for r in with_common_duration_jerk(rows)}
     assert out["energy"].jerk_common_duration == pytest.approx(100.0)  # 3200 (1/2)^5
     assert out["ompl_rrtconnect"].jerk_common_duration == pytest.approx(50.0)
     assert math.isnan(out["rrt_blossom"].jerk_common_duration)  # unsolved: neither a reference nor a value
@@ -589,7 +591,8 @@ def test_that_every_benchmark_planner_is_named_and_the_ablations_differ_from_the
 
 
 def test_that_a_tie_for_the_lowest_jerk_is_counted_as_a_tie_not_for_the_first_planner():
-    from robot_rise.bench.energy import BenchRow, paired_jerk_table
+    from robot_rise.bench.energy import BenchRow
+    from robot_rise.bench.energy_tables import paired_jerk_table
 
     def row(planner, variant, jerk):
         return BenchRow(planner, "crossed", "crossed_arms", variant, True, 0.1, 0.2, 1.0, 0.0, 0.0, jerk, 1.0, "")

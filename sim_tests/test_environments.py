@@ -16,11 +16,12 @@ import pytest
 
 from robot_rise.bench.rise import ENVIRONMENT_SCENES, environment_postures
 from robot_rise.cli import main
-from robot_rise.filter import ankle_joints, check, ground_tilt_vector, prove, slope_ankle_offsets
+from robot_rise.filter import ankle_joints, ground_tilt_vector, slope_ankle_offsets
+from robot_rise.proof import check, prove
 from robot_rise.model import compose, model_index
 from robot_rise.posture import write_posture
 from robot_rise.library import connecting_posture, connection_candidates
-from robot_rise.rise import RiseContext, connection_room, rise
+from robot_rise.rise import RiseContext, connection_room, RiseOptions, rise
 from robot_rise.sampling import sample_lying
 
 # What a failure must name: a constraint with where (segment and time) and which joint or body.
@@ -88,7 +89,7 @@ def test_ankle_offsets_put_the_soles_flat_on_the_slope_with_the_body_upright(rob
 
 def test_a_table_over_the_robot_blocks_every_get_up_and_the_report_names_it(robot):
     start = _prone_at(robot, "table", (0.0, 0.0))
-    result = rise(robot, start, scene="table", candidates=2, budget_s=5, retries=0)
+    result = rise(robot, start, RiseOptions(scene="table", candidates=2, budget_s=5, retries=0))
     assert not result.proven and result.trajectory is None
     assert len(result.attempts) == 2
     for attempt in result.attempts:
@@ -148,9 +149,10 @@ def test_a_fall_is_explained_with_when_and_in_which_segment(robot):
     assert re.search(r"on its feet at 0\.\d\d s until \d+\.\d\d s", proof.diagnosis), proof.diagnosis
 
 
+@pytest.mark.slow
 def test_a_prone_robot_with_its_face_on_the_beam_rises_proven_on_every_variant(robot):  # paper 000 Fig. 9
     start = sample_lying(robot, "prone", 1, seed=2, scene="beam").postures[0]
-    result = rise(robot, start, scene="beam", candidates=2, budget_s=15)
+    result = rise(robot, start, RiseOptions(scene="beam", candidates=2, budget_s=15))
     assert result.proven, result.reason
     assert result.trajectory.report["scene"] == "beam" and result.trajectory.report["proven"] is True
     # check replays it as a user would: nominal, noisy replays, every ensemble variant. Proven on
@@ -164,7 +166,7 @@ def test_a_prone_robot_with_its_face_on_the_beam_rises_proven_on_every_variant(r
 def test_a_prone_robot_on_the_slope_rises_with_its_stance_turned_to_the_slope(robot):  # paper 000 Fig. 13
     kind, start = environment_postures(robot, "slope", 2, 0)[1]
     assert kind == "prone"
-    result = rise(robot, start, scene="slope", candidates=3, budget_s=15)
+    result = rise(robot, start, RiseOptions(scene="slope", candidates=3, budget_s=15))
     assert result.proven, result.reason
     assert len(result.trajectory.report["ensemble"]["variants"]) >= 12
     stance = result.trajectory.report.get("slope_stance")
@@ -181,7 +183,7 @@ def test_rise_in_each_environment_succeeds_or_names_the_constraint_precisely(rob
     context = RiseContext.build(robot, scene)
     risen = 0
     for kind, start in environment_postures(robot, scene, 4, 0):
-        result = rise(robot, start, scene=scene, candidates=3, budget_s=15, context=context)
+        result = rise(robot, start, RiseOptions(scene=scene, candidates=3, budget_s=15), context=context)
         under_table = scene == "table" and abs(start.root_pos[0]) < 0.3 and abs(start.root_pos[1]) < 0.25
         if result.proven:
             assert not under_table, "stood up under a 0.2 m table"

@@ -3,7 +3,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_rise.filter import FilterConfig, command_limits_for, conform, dynamics_filter, join_with_blend, join_with_overlap, overlap_of, prove, time_scale
+from robot_rise.proof import ProofConfig
+from robot_rise.filter import (
+    FilterConfig,
+    command_limits_for,
+    conform,
+    dynamics_filter,
+    join_with_blend,
+    join_with_overlap,
+    overlap_of,
+    time_scale,
+)
+from robot_rise.proof import prove
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory
 
@@ -93,26 +104,26 @@ def test_a_too_fast_squat_is_slowed_by_the_filter_until_it_is_within_the_envelop
     result = dynamics_filter(robot, fast, config=config)
     assert result.proven, result.reason
     # proven under the bound less the headroom, so check's fresh noise (judged at the bound) keeps it
-    proving_limit = 1.0 - config.envelope_margin - config.proof_headroom
-    assert config.proof_headroom > 0 and result.proof.envelope_limit == pytest.approx(proving_limit)
+    proving_limit = 1.0 - config.proof.envelope_margin - config.proof.proof_headroom
+    assert config.proof.proof_headroom > 0 and result.proof.envelope_limit == pytest.approx(proving_limit)
     assert result.proof.peak_torque_ratio <= proving_limit
     assert result.trajectory.duration_s > fast.duration_s
     assert result.report["filter_iterations"] >= 2
     assert result.trajectory.report["proven"] is True and result.proof.proven
     # the output is the commanded targets, replayable: check agrees
     _, _, again = prove(robot, result.trajectory)
-    assert again.proven and again.envelope_limit == pytest.approx(1.0 - config.envelope_margin)
+    assert again.proven and again.envelope_limit == pytest.approx(1.0 - config.proof.envelope_margin)
 
 
 def test_a_motion_timing_window_stops_the_slowing_at_its_bound(robot):
     # a momentum motion stands only near its own timing (Motion.max_stretch): the filter does not
     # replay ever slower versions of it, the next candidate is cheaper
     fast = conform(_squat_trajectory(robot, 0.45), command_limits_for(robot))  # what the executor can stream
-    capped = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False, motion_max_stretch=1.05), join_row=0)
+    capped = dynamics_filter(robot, fast, config=FilterConfig(motion_max_stretch=1.05, proof=ProofConfig(ensemble=False)), join_row=0)
     assert not capped.proven
     assert capped.trajectory.duration_s <= 1.05 * fast.duration_s + 1e-9
     assert capped.report["filter_iterations"] == 1
-    free = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False), join_row=0)
+    free = dynamics_filter(robot, fast, config=FilterConfig(proof=ProofConfig(ensemble=False)), join_row=0)
     assert free.proven and free.trajectory.duration_s > 1.05 * fast.duration_s
 
 
@@ -131,7 +142,7 @@ def test_an_impossible_motion_fails_with_a_reason(robot):
 
 
 def test_a_slow_squat_still_stands_under_every_variant_of_the_ensemble(robot):
-    from robot_rise.filter import EnsembleReplayer, stands_under
+    from robot_rise.proof import EnsembleReplayer, stands_under
     from robot_rise.sim.variants import ENSEMBLE, ModelVariant
 
     tr = _squat_trajectory(robot, 3.0)
@@ -142,18 +153,18 @@ def test_a_slow_squat_still_stands_under_every_variant_of_the_ensemble(robot):
 
 
 def test_a_replay_over_the_margin_by_the_join_stops_there_and_the_filter_still_slows_the_approach(robot):
-    from robot_rise.filter.proof import prove_with_violations
-    from robot_rise.filter.violations import saturation_rad
+    from robot_rise.proof.verdict import prove_with_violations
+    from robot_rise.proof.violations import saturation_rad
     from robot_rise.sim.player import Player
 
     fast = conform(_squat_trajectory(robot, 0.45), command_limits_for(robot))
     join_s = float(fast.t[3])  # the squat is the "approach" (over the margin on the way back up), the last row the library part
-    rec, _, proof, found = prove_with_violations(robot, fast, scene="flat", config=FilterConfig(), player=Player(robot, "flat"),
+    rec, _, proof, found = prove_with_violations(robot, fast, scene="flat", config=ProofConfig(), player=Player(robot, "flat"),
                                                  start=fast.start, saturation_rad=saturation_rad(robot), stop_at_s=join_s)
     assert rec.stopped_s is not None and rec.t[-1] <= join_s + 1e-9
     assert not proof.proven and proof.problems[0].startswith("replay stopped at")
     assert found and all(v.t_start_s <= join_s for v in found)
-    result = dynamics_filter(robot, fast, config=FilterConfig(ensemble=False), join_row=3, stop_at_join=True)
+    result = dynamics_filter(robot, fast, config=FilterConfig(proof=ProofConfig(ensemble=False)), join_row=3, stop_at_join=True)
     assert result.proven, result.reason
     assert result.recording.stopped_s is None and result.report["filter_iterations"] >= 2
     assert prove(robot, result.trajectory)[2].proven  # the whole replay agrees

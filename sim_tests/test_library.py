@@ -234,13 +234,14 @@ def test_clamp_goal_lead_brings_a_saturating_motion_within_the_envelope_and_keep
     assert player.play(clamped).peak_envelope_ratio <= LEAD_CLAMP_TARGET
 
 
+@pytest.mark.slow
 def test_clamp_goal_lead_with_spread_starts_keeps_a_composed_arrival_within_the_envelope() -> None:
     """A get-up proven composed joins a motion from rest on its first targets, the joints up to
     ARRIVAL_MAX_JOINT_RAD from where the motion's own start rests: a saturating motion's first pull
     must stay within the envelope from there too (issue 16)."""
     from robot_rise.authoring import LEAD_CLAMP_TARGET, clamp_goal_lead
-    from robot_rise.filter import arrival_spread_starts
-    from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
+    from robot_rise.proof import arrival_spread_starts
+    from robot_rise.proof.composed import ARRIVAL_SETTLE_S, settled_start
     from robot_rise.trajectory import Trajectory
 
     m = LIBRARY.get("prone_elbow_knees")
@@ -279,8 +280,8 @@ def test_dynamic_motions_stay_within_the_envelope_when_joined_from_a_composed_ar
     its first targets, joints up to ARRIVAL_MAX_JOINT_RAD off its own start, the nominal model
     plays it within the proof's torque bound."""
     from robot_rise.authoring import TORQUE_BOUND
-    from robot_rise.filter import arrival_spread_starts
-    from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
+    from robot_rise.proof import arrival_spread_starts
+    from robot_rise.proof.composed import ARRIVAL_SETTLE_S, settled_start
 
     m = LIBRARY.get(name)
     player = Player(ROBOT, "flat")
@@ -309,7 +310,7 @@ def _unproven_copy_with_start_past_a_limit(directory: Path, name: str, joint: st
     trajectory start and first row) ``past_rad`` below ``joint``'s lower limit."""
     import dataclasses
 
-    from robot_rise.filter import Proof
+    from robot_rise.proof import Proof
 
     directory.mkdir()
     src = default_library_dir()
@@ -327,11 +328,11 @@ def _unproven_copy_with_start_past_a_limit(directory: Path, name: str, joint: st
 
 def test_reprove_library_clamps_the_start_and_writes_a_proof_that_permits_execution_keeping_the_rows(tmp_path: Path) -> None:
     from robot_rise.authoring.write import reprove_library
-    from robot_rise.filter import execution_permit
+    from robot_rise.proof import execution_permit
     from robot_rise.trajectory import read_trajectory
 
     lib = tmp_path / "lib"
-    _unproven_copy_with_start_past_a_limit(lib, "left_tip_elbow_knees", "l_sho_roll", 1.4e-3)
+    _unproven_copy_with_start_past_a_limit(lib, "left_tip_elbow_knees", "l_sho_roll", 3.3e-3)  # issue 40's settled shoulder
     before = read_trajectory(lib / "left_tip_elbow_knees.json")
     assert not execution_permit(before.report, ROBOT).allowed
     (result,) = reprove_library(lib, ROBOT)
@@ -351,11 +352,11 @@ def test_reprove_library_clamps_the_start_and_writes_a_proof_that_permits_execut
     assert files == {p.name: p.read_text() for p in lib.iterdir()}
 
 
-def test_reprove_library_refuses_a_start_more_than_two_ticks_past_a_limit(tmp_path: Path) -> None:
+def test_reprove_library_refuses_a_start_more_than_four_ticks_past_a_limit(tmp_path: Path) -> None:
     from robot_rise.authoring.write import reprove_library
     from robot_rise.errors import PostureError
 
-    _unproven_copy_with_start_past_a_limit(tmp_path / "lib", "left_tip_elbow_knees", "l_sho_roll", 3.2e-3)
+    _unproven_copy_with_start_past_a_limit(tmp_path / "lib", "left_tip_elbow_knees", "l_sho_roll", 7e-3)
     with pytest.raises(PostureError, match="l_sho_roll"):
         reprove_library(tmp_path / "lib", ROBOT)
 

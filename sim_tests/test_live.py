@@ -266,6 +266,7 @@ def test_that_health_problems_name_each_servo_and_limit() -> None:
 # ---- the guard's pushes --------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_that_guard_pushes_the_twin_over_and_reports_each_push_in_json() -> None:
     code, out = _run_cli("guard", "--mock", "--twin", "--pushes", "2", "--seed", "0", "--json")
     result = json.loads(out)

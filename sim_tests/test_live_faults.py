@@ -63,6 +63,7 @@ def test_that_the_goal_spy_catches_a_goal_past_a_limit_and_a_write_it_cannot_rea
     assert len(spy.goals) == 2 * len(smap) and spy.partial == 1
 
 
+@pytest.mark.slow
 def test_that_an_overload_and_a_silent_imu_mid_rise_stop_safely_within_limits_and_say_why() -> None:
     code, report = _bench("overload", "imu-silent")
     assert code == 0
@@ -81,6 +82,7 @@ def test_that_an_overload_and_a_silent_imu_mid_rise_stop_safely_within_limits_an
     assert set(report["summary"]) == {"overload", "imu-silent"}
 
 
+@pytest.mark.slow
 def test_that_a_shove_mid_rise_is_seen_by_the_imu_the_servos_go_limp_and_it_rises_again() -> None:
     # the IMU is read in every cycle of the get-up: a torso off the proof's tilt is a fall
     code, report = _bench("push", seed=1)

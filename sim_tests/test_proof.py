@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robot_rise.errors import FormatError, RobotRiseError
-from robot_rise.filter import Permit, Proof, execution_permit, prove
+from robot_rise.proof import Permit, Proof, execution_permit, prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.trajectory import Trajectory, read_trajectory, write_trajectory

@@ -8,11 +8,12 @@ import pkgutil
 import pytest
 
 import drivers
+import robot_files
 import robot_rise
 
 
 def _modules():
-    for pkg in (robot_rise, drivers):
+    for pkg in (robot_rise, drivers, robot_files):
         for info in pkgutil.walk_packages(pkg.__path__, prefix=f"{pkg.__name__}."):
             if not info.name.endswith("__main__"):
                 yield info.name
@@ -56,6 +57,16 @@ def test_core_never_imports_drivers_and_drivers_never_import_core():
                 continue  # the CLI wires both; benchmarks measure both
             for n in _imported_modules(path):
                 assert not (n == forbidden or n.startswith(forbidden + ".")), f"{path} imports {forbidden}"
+
+
+def test_the_files_both_sides_read_import_neither_side():
+    """robot_files (the servo map, the servo catalog, TOML) is where core and drivers meet: it imports neither."""
+    from pathlib import Path
+
+    root = Path(robot_files.__file__).parent
+    for path in root.rglob("*.py"):
+        for n in _imported_modules(path):
+            assert n.split(".")[0] not in ("robot_rise", "drivers"), f"{path} imports {n}"
 
 
 def test_the_core_never_imports_the_rooms_above_it():
@@ -115,7 +126,7 @@ def test_the_developer_layout_names_every_module_and_nothing_that_is_gone():
     readme = (root / "DEVELOPERS.md").read_text()
     layout = readme[readme.index("## Layout"): readme.index("Data flows one way")]
     named = set(re.findall(r"`([\w/]+(?:\.py)?/?)`", layout))
-    for pkg in ("robot_rise", "drivers"):
+    for pkg in ("robot_rise", "drivers", "robot_files"):
         for path in (root / pkg).rglob("*.py"):
             if path.name in ("__init__.py", "__main__.py") or "cli" in path.parts or "__pycache__" in path.parts:
                 continue
@@ -136,6 +147,6 @@ def test_tests_import_public_names_only():
     for folder in ("sim_tests", "hil_tests"):
         for path in (root / folder).rglob("*.py"):
             for node in ast.walk(ast.parse(path.read_text())):
-                if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in ("robot_rise", "drivers"):
+                if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in ("robot_rise", "drivers", "robot_files"):
                     private = [a.name for a in node.names if a.name.startswith("_")]
                     assert not private, f"{path.relative_to(root)} imports private {private} from {node.module}"

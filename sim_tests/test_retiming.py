@@ -4,6 +4,7 @@ at the first player that fails), and both stand on every player."""
 
 from __future__ import annotations
 
+import pytest
 import logging
 
 from robot_rise.authoring import motion_specs, robustness_players, settle
@@ -13,6 +14,7 @@ from robot_rise.model import load_robot
 from robot_rise.sim.standing import judge
 
 
+@pytest.mark.slow
 def test_one_retiming_gives_the_fastest_and_the_unrefined_timing_as_two_retimings_do() -> None:
     robot = load_robot()
     spec = next(s for s in motion_specs(robot) if s.name == "prone_elbow_knees")

@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 
 from robot_rise.cli import main
-from robot_rise.filter import EnsembleReplayer, EnsembleResult, FilterConfig, Proof, prove
+from robot_rise.filter import FilterConfig
+from robot_rise.proof import ProofConfig
+from robot_rise.proof import EnsembleReplayer, EnsembleResult, Proof, prove
 from robot_rise.library import load_library
 from robot_rise.posture import posture_to_dict, write_posture
-from robot_rise.rise import RiseContext, rise
+from robot_rise.rise import RiseContext, RiseOptions, rise
 from robot_rise.sampling import sample_lying
 from robot_rise.trajectory import Trajectory, read_trajectory, write_trajectory
 
@@ -26,7 +28,7 @@ def test_rise_from_a_random_lying_posture_is_proven_and_starts_where_the_robot_l
     if kind not in _kinds_in_library(robot):
         pytest.skip(f"the library has no {kind} motion")
     posture = sample_lying(robot, kind, 1, seed=21).postures[0]
-    result = rise(robot, posture, budget_s=30)
+    result = rise(robot, posture, RiseOptions(budget_s=30))
     assert result.proven, result.reason
     tr = result.trajectory
     assert posture_to_dict(tr.start) == posture_to_dict(posture)
@@ -148,6 +150,7 @@ def test_rise_names_a_missing_or_broken_scene_file(robot, tmp_path, capsys):
     assert not (tmp_path / "o.json").exists()
 
 
+@pytest.mark.slow
 def test_bench_rise_prints_where_the_robot_time_goes(capsys):
     assert main(["bench", "rise", "--n-per-kind", "1", "--seed", "1", "--no-robustness", "--jobs", "1"]) == 0
     out = capsys.readouterr().out
@@ -168,12 +171,13 @@ def test_a_foot_resting_against_the_torso_where_it_lies_is_not_a_self_collision_
     from robot_rise.posture import read_posture
 
     start = read_posture(Path(__file__).parent / "data" / "prone_foot_against_torso.json")
-    result = rise(robot, start, seed=1)
+    result = rise(robot, start, RiseOptions(seed=1))
     assert result.proven, result.reason
     grown = [v for v in Proof.from_dict(result.trajectory.report).ensemble if v.label == "collision shapes +3 mm"]
     assert len(grown) == 1 and grown[0].standing
 
 
+@pytest.mark.slow
 def test_a_momentum_motion_joined_where_it_is_fragile_is_refused_by_its_combined_variants(robot):
     # supine_1_042 of the 300 protocol: the sit-up joined from here passed all 19 one-difference
     # variants yet stood in only 30 of 50 random ones. The approach and the join as rise commanded
@@ -183,7 +187,8 @@ def test_a_momentum_motion_joined_where_it_is_fragile_is_refused_by_its_combined
     # rise returns a get-up from there that stands on them
     from pathlib import Path
 
-    from robot_rise.filter import EnsembleReplayer, FilterConfig, dynamics_filter
+    from robot_rise.filter import FilterConfig, dynamics_filter
+    from robot_rise.proof import EnsembleReplayer
     from robot_rise.posture import read_posture
     from robot_rise.sim.variants import ENSEMBLE, combined_variants
 
@@ -194,23 +199,22 @@ def test_a_momentum_motion_joined_where_it_is_fragile_is_refused_by_its_combined
     commanded = read_trajectory(data / "supine_situp_fragile_join.commanded.json")
     assert commanded.report["motion"] == situp.name
     ensemble = EnsembleReplayer(robot, "flat")
-    joined = FilterConfig(max_stretch=2.5, motion_max_stretch=situp.max_stretch, combined_variants=situp.combined_variants,
-                          noise_replays=situp.noise_replays)
+    joined = FilterConfig(max_stretch=2.5, motion_max_stretch=situp.max_stretch, proof=ProofConfig(combined_variants=situp.combined_variants, noise_replays=situp.noise_replays))
 
     def filtered(config: FilterConfig):
         return dynamics_filter(robot, commanded, config=config, start=start, ensemble=ensemble, join_row=commanded.report["plan_rows"])
 
     with_noise = filtered(joined)
     assert not with_noise.proven and "target noise" in with_noise.reason
-    combined = filtered(dataclasses.replace(joined, noise_replays=0))
+    combined = filtered(dataclasses.replace(joined, proof=dataclasses.replace(joined.proof, noise_replays=0)))
     assert not combined.proven and "combined variant" in combined.reason
-    one_difference = filtered(dataclasses.replace(joined, noise_replays=0, combined_variants=0))
+    one_difference = filtered(dataclasses.replace(joined, proof=dataclasses.replace(joined.proof, noise_replays=0, combined_variants=0)))
     assert one_difference.proven, one_difference.reason
-    result = rise(robot, start, seed=1, filter_config=FilterConfig(noise_replays=0))
+    result = rise(robot, start, RiseOptions(seed=1, filter_config=FilterConfig(proof=ProofConfig(noise_replays=0))))
     assert result.proven, result.reason
     proof = Proof.from_dict(result.trajectory.report)
     assert result.trajectory.report["motion"] != situp.name and len(proof.ensemble) == len(ENSEMBLE)
-    replayed = EnsembleReplayer(robot, "flat", variants=combined_variants(8)).replay(result.trajectory, config=FilterConfig())[0]
+    replayed = EnsembleReplayer(robot, "flat", variants=combined_variants(8)).replay(result.trajectory, config=ProofConfig())[0]
     assert replayed.all_stand, replayed.failures()
 
 
@@ -222,7 +226,7 @@ def test_a_start_every_candidate_fails_from_rises_again_from_where_it_fell(robot
     is not proven whole (a noisy replay of the combined targets peaks at the bound): the nearest
     motions' rise is tried next, and proven (40 s)."""
     posture = sample_lying(robot, "right", 28, seed=1).postures[27]
-    result = rise(robot, posture, seed=1)
+    result = rise(robot, posture, RiseOptions(seed=1))
     assert result.proven, result.reason
     tr = result.trajectory
     assert tr.report["recovery"]["first_attempt"].startswith("not standing")
@@ -240,7 +244,7 @@ def test_a_candidate_the_filter_gave_up_on_while_its_torque_came_down_gets_more_
     from robot_rise.rise import MORE_ITERATIONS
 
     posture = sample_lying(robot, "prone", 1, 3).postures[0]
-    result = rise(robot, posture, seed=0, budget_s=10, candidates=1, retries=0, filter_config=FilterConfig(max_iterations=1))
+    result = rise(robot, posture, RiseOptions(seed=0, budget_s=10, candidates=1, retries=0, filter_config=FilterConfig(max_iterations=1)))
     assert result.proven, result.reason
     first, more = result.attempts
     assert not first.proven and first.filter_reason.startswith("torque") and (first.motion, first.frame) == (more.motion, more.frame)
@@ -250,14 +254,15 @@ def test_a_candidate_the_filter_gave_up_on_while_its_torque_came_down_gets_more_
     assert again.proven and verdict.standing and again.peak_torque_ratio <= again.envelope_limit
 
 
+@pytest.mark.slow
 def test_the_time_the_filter_added_by_slowing_is_trimmed_and_the_shorter_get_up_proven(robot, tmp_path, capsys):
     """OP3, seed 1, prone posture 3 of the 300-posture protocol: the nominal filter slows windows
     by whole coarse steps; the time it added is cut back by bisection (``trim_levels`` nominal
     replays) and the shorter get-up goes through the same noise check and ensemble proof. Without
     the trim the same rise is the untrimmed one, longer by what the trim says it saved."""
     posture = sample_lying(robot, "prone", 3, seed=1).postures[2]
-    trimmed = rise(robot, posture, seed=1, candidates=1, retries=0)
-    untrimmed = rise(robot, posture, seed=1, candidates=1, retries=0, filter_config=FilterConfig(trim_levels=0))
+    trimmed = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0))
+    untrimmed = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0, filter_config=FilterConfig(trim_levels=0)))
     assert trimmed.proven and untrimmed.proven, (trimmed.reason, untrimmed.reason)
     trims = trimmed.trajectory.report["trim"]
     assert [t["kept"] for t in trims] == [True] and untrimmed.trajectory.report["trim"] == []
@@ -271,6 +276,7 @@ def test_the_time_the_filter_added_by_slowing_is_trimmed_and_the_shorter_get_up_
     assert main(["check", str(tmp_path / "trimmed.json")]) == 0, capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautious_timing(robot):
     """OP3, seed 1, left-side posture 19 of the 300-posture protocol: the fastest approach to
     prone_elbow_knees_quick tips the body onto its back (its gravity direction > 0.5 rad from the
@@ -278,7 +284,7 @@ def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautio
     and the attempt says how that went. The filter's output carries no root; the planned one is
     the plan's (a bug hid this retry)."""
     posture = sample_lying(robot, "left", 19, seed=1).postures[18]
-    result = rise(robot, posture, seed=1, candidates=1, retries=0)
+    result = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0))
     first = result.attempts[0]
     assert first.planned and first.cautious, first.describe()
     assert f"cautiously timed: {first.cautious}" in first.describe()
@@ -287,17 +293,18 @@ def test_an_approach_the_servos_threw_off_plan_is_filtered_again_with_the_cautio
     # joined with a step or a pause: the roll over the right side saturates a hip roll however
     # slowly it goes; the overlapped join proves it)
     left_3 = sample_lying(robot, "left", 5, seed=1).postures[2]
-    side = rise(robot, left_3, seed=1, candidates=1, retries=0, filter_config=FilterConfig(join_overlap_s=None))
+    side = rise(robot, left_3, RiseOptions(seed=1, candidates=1, retries=0, filter_config=FilterConfig(join_overlap_s=None)))
     assert side.attempts[0].planned and not side.attempts[0].proven and side.attempts[0].cautious == "", side.attempts[0].describe()
 
 
+@pytest.mark.slow
 def test_an_overlapped_join_slowed_past_the_steps_best_has_the_step_tried_and_the_quicker_kept(robot):
     """OP3, seed 1, right-side posture 7 of the 300-posture protocol: the overlapped join to
     prone_elbow_knees_quick is proven but slowed past what the 0.1 s step could at best give, so
     the step is filtered too (its nominal filter first, then proven whole) and stands sooner: it
     is kept. The report's ``joins`` says what each join gave."""
     posture = sample_lying(robot, "right", 7, seed=1).postures[6]
-    result = rise(robot, posture, seed=1, candidates=1, retries=0)
+    result = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0))
     assert result.proven, result.reason
     report = result.trajectory.report
     overlap, screen, step = report["joins"]
@@ -312,6 +319,7 @@ def test_an_overlapped_join_slowed_past_the_steps_best_has_the_step_tried_and_th
     assert result.trajectory.duration_s == pytest.approx(step["duration_s"])
 
 
+@pytest.mark.slow
 def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
     """A trimmed timing passing the ensemble is kept only where the timing it was cut from stands
     on the same variants: a second timing against the same fixed variants is a second chance to
@@ -322,7 +330,7 @@ def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
     once and goes on to the ensemble's slowing round, slower than it, proven."""
     posture = sample_lying(robot, "prone", 3, seed=1).postures[2]
     one_join = FilterConfig(join_overlap_s=None)  # one filtered join: an overlap proven slowed has the step tried too
-    plain = rise(robot, posture, seed=1, candidates=1, retries=0, filter_config=one_join)
+    plain = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0, filter_config=one_join))
     untrimmed_s = plain.trajectory.report["trim"][0]["untrimmed_duration_s"]
 
     replayed: list[float] = []  # the duration of every trajectory the ensemble replayed
@@ -342,7 +350,7 @@ def test_a_trim_whose_untrimmed_timing_fails_the_ensemble_is_not_kept(robot):
         def ensemble(self):
             return ensemble
 
-    result = rise(robot, posture, seed=1, candidates=1, retries=0, context=Context.build(robot, "flat"), filter_config=one_join)
+    result = rise(robot, posture, RiseOptions(seed=1, candidates=1, retries=0, filter_config=one_join), context=Context.build(robot, "flat"))
     report = result.trajectory.report
     first = report["trim"][0]
     assert first["kept"] is False and first["untrimmed_ensemble_standing"] == report["ensemble"]["size"] - 1, report["trim"]

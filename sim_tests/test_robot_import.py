@@ -206,6 +206,7 @@ def test_no_joint_name_of_any_robot_appears_in_the_product_code(published_models
     assert all("." in r for r in ROLES)
 
 
+@pytest.mark.slow
 def test_an_imported_robot_goes_through_sample_check_report_and_the_twin(imported, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """Issue 15: the commands take --robot DIR for an imported robot (the HTML report names it)."""
     from robot_rise.trajectory import Trajectory, write_trajectory

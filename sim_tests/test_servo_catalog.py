@@ -213,3 +213,17 @@ def test_the_catalog_follows_the_configs_directory(tmp_path: Path, monkeypatch: 
     (tmp_path / "servos" / "catalog.toml").unlink()
     with pytest.raises(ConfigError, match="missing servo catalog"):
         servo_catalog()
+
+
+def test_the_emulated_servos_run_on_the_catalogs_figures_and_the_control_tables_hold_none() -> None:
+    """One place for a servo's physical figures: the emulator's load model reads the catalog the simulator reads."""
+    from drivers.control_table import SUPPORTED_MODELS, SUPPORTED_MODELS_1, control_table
+    from drivers.mockbus.emulated_servo import LOAD_MODEL_SUPPLY_V, motor_figures
+
+    for protocol, models in ((2.0, SUPPORTED_MODELS), (1.0, SUPPORTED_MODELS_1)):
+        for model in models:
+            table = control_table(model, protocol)
+            sheet = servo_datasheet(table.model)
+            assert motor_figures(table.model) == (sheet.stall_torque_at(LOAD_MODEL_SUPPLY_V), sheet.no_load_speed_at(LOAD_MODEL_SUPPLY_V))
+            assert not hasattr(table, "stall_torque_nm") and not hasattr(table, "no_load_speed_rad_s")
+    assert motor_figures("XM430-W350") == (4.1, rpm(46.0))  # the figures the emulator had in code

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from robot_rise.filter import Proof, execution_permit
+from robot_rise.proof import Proof, execution_permit
 from robot_rise.library import default_library_dir, load_library
 from robot_rise.model import load_robot
 from robot_rise.posture import read_posture

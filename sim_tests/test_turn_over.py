@@ -37,6 +37,7 @@ def test_a_strategy_file_names_a_lying_kind_it_lands_in(tmp_path: Path) -> None:
             read_strategy(tmp_path / "s.json")
 
 
+@pytest.mark.slow
 def test_the_roll_lands_on_the_front_at_rest_on_every_player_as_authored_and_says_when_it_does_as_clamped() -> None:
     roll = STRATEGIES["supine_roll_onto_front"]
     players = robustness_players(ROBOT)

@@ -1,4 +1,4 @@
-"""Model variants (robot_rise.sim.variants) and the ensemble proof (robot_rise.filter.ensemble)."""
+"""Model variants (robot_rise.sim.variants) and the ensemble proof (robot_rise.proof.ensemble)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robot_rise.cli import main
-from robot_rise.filter import EnsembleResult, Proof, VariantVerdict, with_ensemble
+from robot_rise.proof import EnsembleResult, Proof, VariantVerdict, with_ensemble
 from robot_rise.model import compose, model_index
 from robot_rise.posture import stand_posture
 from robot_rise.sim.player import Player

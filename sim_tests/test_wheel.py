@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
-CODE_PACKAGES = ("robot_rise", "drivers")
+CODE_PACKAGES = ("robot_rise", "drivers", "robot_files")
 REQUIRED = (
     "robot_rise/configs/robots/op3/robot.xml",
     "robot_rise/configs/robots/op3/robot.toml",
@@ -34,6 +34,8 @@ REQUIRED = (
     "drivers/__init__.py",
     "drivers/py.typed",
     "drivers/mockbus/__init__.py",
+    "robot_files/__init__.py",
+    "robot_files/py.typed",
 )
 
 
@@ -112,15 +114,16 @@ def test_wheel_file_list(dists: tuple[Path, Path]) -> None:
     assert shipped_configs - names == set(), "config files left out: widen [tool.setuptools.package-data]"
     code = set().union(*(_source_files(p, ".py") for p in CODE_PACKAGES))
     assert code - names == set()
-    # Nothing at the top level but the two packages and the metadata: no tests, no bare configs/.
+    # Nothing at the top level but the three packages and the metadata: no tests, no bare configs/.
     dist_info = "-".join(wheel.name.split("-")[:2]) + ".dist-info"
-    assert {n.split("/")[0] for n in names} == {"robot_rise", "drivers", dist_info}
+    assert {n.split("/")[0] for n in names} == {"robot_rise", "drivers", "robot_files", dist_info}
     assert "robot-rise = robot_rise.cli:main" in zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
 
 
 _PROBE = textwrap.dedent("""
     import json, sys
-    import drivers, robot_rise
+    import drivers, robot_files, robot_rise
+    from robot_files.servo_catalog import product_catalog_path
     from robot_rise.library import load_library
     from robot_rise.model import compose, load_robot
     from robot_rise.paths import configs_dir
@@ -130,7 +133,8 @@ _PROBE = textwrap.dedent("""
     for s in scenes:
         compose(r, s)
     print(json.dumps({
-        "robot_rise": robot_rise.__file__, "drivers": drivers.__file__, "configs": str(configs_dir()),
+        "robot_rise": robot_rise.__file__, "drivers": drivers.__file__, "robot_files": robot_files.__file__,
+        "configs": str(configs_dir()), "catalog": str(product_catalog_path()),
         "robot": r.name, "n_joints": r.n_joints, "scenes": scenes, "motions": len(load_library().motions),
     }))
 """)
@@ -150,9 +154,10 @@ def test_unpacked_wheel_runs_outside_the_checkout(dists: tuple[Path, Path], tmp_
     assert r.returncode == 0, r.stdout + r.stderr
     got = json.loads(r.stdout.strip().splitlines()[-1])
     site = site.resolve()
-    for key in ("robot_rise", "drivers", "configs"):
+    for key in ("robot_rise", "drivers", "robot_files", "configs"):
         assert Path(got[key]).resolve().is_relative_to(site), (key, got[key])
     assert Path(got["configs"]).resolve() == site / "robot_rise" / "configs"
+    assert Path(got["catalog"]).resolve() == site / "robot_rise" / "configs" / "servos" / "catalog.toml"  # what drivers reads
     assert got["robot"] == "op3" and got["n_joints"] > 0
     assert got["scenes"] == sorted(Path(n).stem for n in _source_files("configs/scenes", ".xml"))
     assert got["motions"] > 0

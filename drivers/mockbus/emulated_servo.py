@@ -34,16 +34,34 @@ from drivers.control_table import (
     HardwareErrorBits,
     Register,
 )
+from drivers.errors import ControlTableError
 from drivers.mockbus.plant import ServoCommand, ServoMotion
 from drivers.protocol import ALERT_BIT, StatusError
+from robot_files.errors import RobotFileError
+from robot_files.servo_catalog import product_datasheet
 
-__all__ = ["EmulatedServo", "ThermalModel"]
+__all__ = ["EmulatedServo", "ThermalModel", "LOAD_MODEL_SUPPLY_V", "motor_figures"]
 
 _log = logging.getLogger(__name__)
 
 _GOAL_REGISTERS = ("goal_pwm", "goal_current", "goal_velocity", "goal_position")
 _INDIRECT_BLOCKS = ((INDIRECT_DATA_1, INDIRECT_ADDRESS_1), (634, 578))
 _STRUCT_CODE = {1: "B", 2: "H", 4: "I"}  # unsigned struct codes by register size
+LOAD_MODEL_SUPPLY_V = 12.0  # [V] the emulated servos' load model: the catalog's figures at 12 V
+
+
+def motor_figures(model: str) -> tuple[float, float]:
+    """(stall torque [N m], no-load speed [rad/s]) of ``model`` at ``LOAD_MODEL_SUPPLY_V``: the
+    product's servo catalog's figures (``configs/servos/catalog.toml``), the ones the simulator uses.
+
+    Raises:
+        ControlTableError: the catalog is missing or malformed, or lacks the model.
+    """
+    try:
+        sheet = product_datasheet(model)
+    except RobotFileError as e:
+        raise ControlTableError(str(e), hint=e.hint) from None
+    return sheet.stall_torque_at(LOAD_MODEL_SUPPLY_V), sheet.no_load_speed_at(LOAD_MODEL_SUPPLY_V)
 
 
 @dataclass(frozen=True)
@@ -79,6 +97,7 @@ class EmulatedServo:
                  return_delay_units: int = 250, initial_position_ticks: int = CENTER_TICKS,
                  firmware_version: int = 46, thermal: ThermalModel | None = None) -> None:
         self.table = table
+        self.stall_torque_nm, self.no_load_speed_rad_s = motor_figures(table.model)
         self.thermal = thermal or ThermalModel()
         self._reg_at_byte: list[Register | None] = [None] * MEMORY_SIZE
         # name -> (reader, writer, address, mask): struct codecs precomputed for speed
@@ -264,9 +283,8 @@ class EmulatedServo:
     def command(self) -> ServoCommand:
         """The command this servo gives its shaft now."""
         get = self.get
-        table = self.table
         profile = get("profile_velocity")
-        vmax = table.no_load_speed_rad_s
+        vmax = self.no_load_speed_rad_s
         if profile > 0:
             vmax = min(vmax, profile * VELOCITY_UNIT_RAD_S)
         pwm_limit = max(1, get("pwm_limit"))
@@ -275,8 +293,8 @@ class EmulatedServo:
             goal = (get("goal_position") - CENTER_TICKS) * RAD_PER_TICK
         else:
             goal = self.position_rad
-        stiffness = table.stall_torque_nm / 0.22 * get("position_p_gain") / 800.0
-        return ServoCommand(self.mem[64] == 1, goal, vmax, pwm_fraction, table.stall_torque_nm, stiffness)
+        stiffness = self.stall_torque_nm / 0.22 * get("position_p_gain") / 800.0
+        return ServoCommand(self.mem[64] == 1, goal, vmax, pwm_fraction, self.stall_torque_nm, stiffness)
 
     def apply_motion(self, motion: ServoMotion, dt_s: float, now_s: float, input_voltage_v: float,
                      heating_gain: float = 1.0) -> None:
@@ -292,7 +310,7 @@ class EmulatedServo:
         put("present_position", int(round(position / RAD_PER_TICK)) + CENTER_TICKS)
         put("present_velocity", int(round(velocity / VELOCITY_UNIT_RAD_S)))
         table = self.table
-        stall = table.stall_torque_nm
+        stall = self.stall_torque_nm
         if table.current_unit_a is not None:
             # linear torque-current model with 2.3 A at stall (XM430 datasheet)
             put("present_current", int(round(torque / stall * 2.3 / table.current_unit_a)))

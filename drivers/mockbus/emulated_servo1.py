@@ -20,7 +20,7 @@ import struct
 
 from drivers.control_table import ControlTable, Register
 from drivers.control_table1 import DIRECTION_BIT, EEPROM_END_1
-from drivers.mockbus.emulated_servo import ThermalModel
+from drivers.mockbus.emulated_servo import ThermalModel, motor_figures
 from drivers.mockbus.plant import ServoCommand, ServoMotion
 from drivers.protocol1 import ErrorBits1
 
@@ -45,6 +45,7 @@ class EmulatedServo1:
                  return_delay_units: int = 250, initial_position_ticks: int | None = None,
                  firmware_version: int | None = None, thermal: ThermalModel | None = None) -> None:
         self.table = table
+        self.stall_torque_nm, self.no_load_speed_rad_s = motor_figures(table.model)
         self.thermal = thermal or ThermalModel()
         self._reg_at_byte: list[Register | None] = [None] * table.memory_size
         self._fields: dict[str, tuple[struct.Struct, int]] = {}
@@ -186,7 +187,7 @@ class EmulatedServo1:
         """The command this servo gives its shaft now."""
         table = self.table
         get = self.get
-        vmax = table.no_load_speed_rad_s
+        vmax = self.no_load_speed_rad_s
         speed = get("moving_speed") & 0x3FF
         if speed > 0:
             vmax = min(vmax, speed * table.velocity_unit_rad_s)
@@ -195,11 +196,11 @@ class EmulatedServo1:
         goal = self.position_rad if wheel else (get("goal_position") - table.center_ticks) * table.rad_per_tick
         if self._mx:
             kp = get("p_gain") / _MX_KP_DIVISOR / _FULL_SCALE  # output fraction per tick
-            stiffness = table.stall_torque_nm * kp / table.rad_per_tick
+            stiffness = self.stall_torque_nm * kp / table.rad_per_tick
         else:
             slope = max(1, min(get("cw_compliance_slope"), get("ccw_compliance_slope")))
-            stiffness = table.stall_torque_nm / (slope * table.rad_per_tick)
-        return ServoCommand(self.torque_on and cap > 0, goal, vmax, cap, table.stall_torque_nm, stiffness)
+            stiffness = self.stall_torque_nm / (slope * table.rad_per_tick)
+        return ServoCommand(self.torque_on and cap > 0, goal, vmax, cap, self.stall_torque_nm, stiffness)
 
     def apply_motion(self, motion: ServoMotion, dt_s: float, now_s: float, input_voltage_v: float,
                      heating_gain: float = 1.0) -> None:
@@ -210,7 +211,7 @@ class EmulatedServo1:
         ticks = int(round(position / table.rad_per_tick)) + table.center_ticks
         self._set("present_position", max(0, min(table.max_ticks, ticks)))
         self._set("present_speed", _signed_magnitude(round(velocity / table.velocity_unit_rad_s)))
-        self._set("present_load", _signed_magnitude(round(_FULL_SCALE * torque / table.stall_torque_nm)))
+        self._set("present_load", _signed_magnitude(round(_FULL_SCALE * torque / self.stall_torque_nm)))
         self._set("moving", int(abs(velocity) > 0.02))
         if self._mx:
             self._set("realtime_tick", int((now_s - self.start_s) * 1000) % 32768)

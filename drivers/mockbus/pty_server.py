@@ -19,12 +19,12 @@ sent at another speed are dropped, as real servos would not understand them. Spe
 Python's ``termios`` cannot name are accepted.
 
 Run standalone: ``python -m drivers.mockbus --ids 1-20 --baud 1000000 --wire-timing``
-(prints ``DEVICE /dev/pts/N`` first); the operator command is ``robot-rise mockbus serve``.
+(:mod:`drivers.mockbus.__main__`: prints ``DEVICE /dev/pts/N`` first); the operator command is
+``robot-rise mockbus serve``.
 """
 
 from __future__ import annotations
 
-import argparse
 import errno
 import logging
 import os
@@ -41,9 +41,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivers.clock import SPIN_MARGIN_S, MonotonicClock, realtime_scheduling
+from drivers.clock import SPIN_MARGIN_S
 from drivers.mockbus.emulator import MockBus
-from drivers.mockbus.protocol_dxlsim import parse_ids
 
 __all__ = [
     "DEVICE_LINE_PREFIX",
@@ -52,7 +51,6 @@ __all__ = [
     "PtyServerProcess",
     "spawn_pty_server",
     "tty_baud_rate",
-    "main",
 ]
 
 _log = logging.getLogger(__name__)
@@ -287,7 +285,7 @@ def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate
                      wire_timing: bool = True, return_delay_units: int = 0,
                      rt_priority: int | None = None, startup_timeout_s: float = 20.0,
                      protocol: float = 2.0) -> PtyServerProcess:
-    """Start ``python -m drivers.mockbus.pty_server`` in a child process; wait for its device.
+    """Start ``python -m drivers.mockbus`` in a child process; wait for its device.
 
     Args:
         rt_priority: run the emulator under ``SCHED_FIFO`` at this priority when permitted
@@ -318,47 +316,3 @@ def spawn_pty_server(ids: Sequence[int], *, model: str = "XM430-W350", baud_rate
         proc.wait()
         raise RuntimeError(f"pty server did not start (got {line!r})")
     return PtyServerProcess(proc, line[len(DEVICE_LINE_PREFIX):].strip())
-
-
-def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - exercised via subprocess
-    p = argparse.ArgumentParser(prog="python -m drivers.mockbus",
-                                description="Serve an emulated Dynamixel bus on a pseudo-terminal.")
-    p.add_argument("--ids", default="1-20", help="servo IDs, e.g. 1-20 or 1,3,5 (default 1-20)")
-    p.add_argument("--model", default=None, help="servo model (default XM430-W350, or MX-28 with --protocol 1.0)")
-    p.add_argument("--protocol", type=float, default=2.0, choices=[1.0, 2.0], help="Dynamixel protocol (default 2.0)")
-    p.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate [bit/s]")
-    p.add_argument("--wire-timing", action="store_true", help="replies take their wire time")
-    p.add_argument("--delay", type=int, default=0, help="Return Delay Time (2 us units)")
-    p.add_argument("--link", help="symlink to the device")
-    p.add_argument("--rt-priority", type=int, metavar="P",
-                   help="serve under SCHED_FIFO priority P (needs root or CAP_SYS_NICE): replies on time on a busy host")
-    p.add_argument("-v", "--verbose", action="store_true", help="info logs (served and late replies at exit)")
-    args = p.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
-    if args.protocol == 1.0:
-        from drivers.mockbus.emulator1 import MockBus1
-
-        bus: MockBus = MockBus1.from_ids(parse_ids(args.ids), args.model or "MX-28", baud_rate=args.baud,
-                                         clock=MonotonicClock(), wire_timing=args.wire_timing,
-                                         return_delay_units=args.delay)
-    else:
-        bus = MockBus.from_ids(parse_ids(args.ids), args.model or "XM430-W350", baud_rate=args.baud,
-                               clock=MonotonicClock(), wire_timing=args.wire_timing, return_delay_units=args.delay)
-    server = PtyServer(bus, link=args.link)
-    device = server.open()
-    signal.signal(signal.SIGTERM, lambda *_: server.stop())
-    with realtime_scheduling(args.rt_priority) as note:
-        _log.info("emulator: %s", note)
-        print(f"{DEVICE_LINE_PREFIX}{device}", flush=True)
-        try:
-            server.serve()
-        except KeyboardInterrupt:
-            pass
-        finally:
-            server.close()
-    st = server.stats
-    _log.info("served %d replies; %d late by > 0.5 ms (max %.2f ms); %d bytes at a wrong baud rate ignored",
-              st.replies, st.late_replies, st.max_lateness_s * 1e3, st.dropped_wrong_baud)
-    return 0
-

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from robot_rise.filter.composed import ARRIVAL_SETTLE_S, settled_start
+from robot_rise.proof.composed import ARRIVAL_SETTLE_S, settled_start
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.servo import servo_arrays

@@ -26,7 +26,8 @@ from robot_rise.authoring.goal_lead import clamp_goal_lead
 from robot_rise.authoring.keyframes import Keyframe, build_trajectory
 from robot_rise.authoring.write import PROOF_SCENE, motion_specs, prove_for_library, settled_start, write_motion
 from robot_rise.errors import PostureError
-from robot_rise.filter import ARRIVAL_SETTLE_S, arrival_spread_starts, command_limits_for, conform, join_with_blend
+from robot_rise.filter import command_limits_for, conform, join_with_blend
+from robot_rise.proof import ARRIVAL_SETTLE_S, arrival_spread_starts
 from robot_rise.library import Strategy
 from robot_rise.model import Robot
 from robot_rise.placement import place_near

@@ -37,14 +37,12 @@ from robot_rise.authoring.retiming import RETIME_RATIO_TARGET, Retimed, retime, 
 from robot_rise.authoring.robustness import TORQUE_BOUND, robustness_players
 from robot_rise.errors import FormatError, PostureError
 from robot_rise.fileio import write_text_atomic
-from robot_rise.filter import (
-    COMMAND_LIMITS_KEY,
+from robot_rise.filter import COMMAND_LIMITS_KEY, command_limits_for, conform
+from robot_rise.proof import (
     PREDICTED_KEY,
     EnsembleReplayer,
     Proof,
     arrival_spread_starts,
-    command_limits_for,
-    conform,
     predicted_positions,
     prove,
     with_ensemble,

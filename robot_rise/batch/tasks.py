@@ -2,7 +2,8 @@
 
 The id is a digest of everything that changes the task's result:
 
-- the robot's files (``Robot.digest()``) and its motion library's files (:func:`library_digest`);
+- the robot's files (``Robot.digest()``) and its motion library's files
+  (:func:`robot_rise.library.library_digest`);
 - the scene's name and its files (:func:`scene_files_digest`);
 - the rise options that change a result (:func:`options_key`: planning budget, candidates,
   retries and every field of the dynamics filter's configuration, ensemble proof included),
@@ -23,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import inspect
 import json
 import os
 from collections.abc import Mapping, Sequence
@@ -34,20 +34,21 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import PostureError, RobotRiseError, SceneError
+from robot_rise.library import library_digest
 from robot_rise.model import Robot, model_files
 from robot_rise.paths import scene_path
 from robot_rise.sampling import LYING_KINDS
 
 __all__ = [
     "TASK_SCHEME", "RESULT_OPTIONS", "BatchTask", "PostureFile", "task_id", "posture_seed", "make_tasks",
-    "options_key", "scene_files_digest", "library_digest", "posture_content", "read_posture_dir",
+    "options_key", "scene_files_digest", "posture_content", "read_posture_dir",
 ]
 
 TASK_SCHEME = "robot-rise/batch-task@2"
 """Part of every id: a change of what a task computes from its inputs changes this, and so every id."""
 
 RESULT_OPTIONS = ("budget_s", "candidates", "retries", "filter_config", "composed")
-"""The keyword arguments of :func:`robot_rise.rise.rise` a batch may set; each is part of the id."""
+"""The fields of :class:`robot_rise.rise.RiseOptions` a batch may set; each is part of the id."""
 _KEYED_ONLY_IF_SET = ("composed",)  # options added after stores were written: at their default they leave the id as it was
 
 
@@ -105,7 +106,11 @@ def posture_seed(seed: int, index: int) -> int:
 
 def _jsonable(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {"type": type(value).__name__, **{k: _jsonable(v) for k, v in dataclasses.asdict(value).items()}}
+        fields = dataclasses.asdict(value)
+        # a FilterConfig's proof standard keyed beside its own fields, as before the two were apart
+        # (robot_rise.proof.ProofConfig): the ids of stores written then still match
+        nested = fields.pop("proof", None) if type(value).__name__ == "FilterConfig" else None
+        return {"type": type(value).__name__, **{k: _jsonable(v) for k, v in {**(nested or {}), **fields}.items()}}
     if isinstance(value, Mapping):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -123,15 +128,15 @@ def options_key(rise_options: Mapping[str, Any] | None = None) -> str:
     Raises:
         RobotRiseError: an option a batch does not take (not in :data:`RESULT_OPTIONS`).
     """
-    from robot_rise.rise import rise
+    from robot_rise.rise import RiseOptions
 
     given = dict(rise_options or {})
     unknown = sorted(set(given) - set(RESULT_OPTIONS))
     if unknown:
         raise RobotRiseError(f"rise option {unknown[0]!r} is not a batch option; a batch takes {', '.join(RESULT_OPTIONS)}")
-    params = inspect.signature(rise).parameters
-    full = {name: given.get(name, params[name].default) for name in RESULT_OPTIONS}
-    full = {k: v for k, v in full.items() if not (k in _KEYED_ONLY_IF_SET and v == params[k].default)}
+    defaults = RiseOptions()
+    full = {name: given.get(name, getattr(defaults, name)) for name in RESULT_OPTIONS}
+    full = {k: v for k, v in full.items() if not (k in _KEYED_ONLY_IF_SET and v == getattr(defaults, k))}
     return json.dumps(_jsonable(full), sort_keys=True, separators=(",", ":"))
 
 
@@ -157,22 +162,6 @@ def scene_files_digest(scene: str | os.PathLike[str]) -> str:
         return _files_digest(path, model_files(path), path.parent)
     except RobotRiseError as e:
         raise SceneError(f"scene {scene}: {e}") from None
-
-
-def library_digest(robot: Robot) -> str:
-    """SHA-256 of every file of the motion library a robot rises with ('' when it has none)."""
-    import robot_rise.library as lib
-
-    # the robot's own library directory when the library package knows of one, else the shipped one
-    root = lib.robot_library_dir(robot)
-    files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else []
-    if not files:
-        return ""
-    h = hashlib.sha256()
-    for path in files:
-        h.update(os.path.relpath(path, root).encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()
 
 
 def posture_content(obj: Any, *, where: str = "posture") -> str:

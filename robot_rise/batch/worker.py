@@ -30,7 +30,7 @@ def _context(task: BatchTask):
         return _CONTEXTS[key]
     import dataclasses
 
-    from robot_rise.filter.ensemble import EnsembleReplayer
+    from robot_rise.proof.ensemble import EnsembleReplayer
     from robot_rise.model import load_robot
     from robot_rise.rise import RiseContext
 
@@ -77,7 +77,7 @@ def execute_task(task: BatchTask, *, store_root: str, rise_options: dict[str, An
 
     from robot_rise.errors import RobotRiseError
     from robot_rise.posture import posture_from_dict
-    from robot_rise.rise import rise
+    from robot_rise.rise import RiseOptions, rise
     from robot_rise.sampling import sample_lying
     from robot_rise.trajectory import write_trajectory
 
@@ -89,7 +89,7 @@ def execute_task(task: BatchTask, *, store_root: str, rise_options: dict[str, An
             posture = posture_from_dict(json.loads(task.posture), context.robot, where=task.posture_file or task.id)
         else:
             posture = sample_lying(context.robot, task.kind, 1, posture_seed(task.seed, task.index), scene=task.scene).postures[0]  # type: ignore[arg-type]
-        result = rise(context.robot, posture, scene=task.scene, seed=task.seed, context=context, **(rise_options or {}))
+        result = rise(context.robot, posture, RiseOptions(scene=task.scene, seed=task.seed, **(rise_options or {})), context=context)
     except RobotRiseError as e:  # an expected failure of this posture: a status, not a crash
         row.update(status="unproven", reason=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - t0)
         return row

@@ -1,6 +1,6 @@
 """Bus benchmark: cycle rate vs the wire-time limit, host CPU per cycle, jitter at 100 Hz.
 
-Run: ``robot-rise bench bus`` (or ``python -m robot_rise.bench.bus``). 20 XM430-W350 servos with
+Run: ``robot-rise bench bus``. 20 XM430-W350 servos with
 return delay 0 and wire timing on. By default the emulator runs in a child process behind a
 pseudo-terminal (:mod:`drivers.mockbus.pty_server`), so its Python work is not host time and
 the host talks to it through the same kernel path as to a USB adapter; ``transport="inprocess"``
@@ -25,9 +25,8 @@ As the executor does when it streams, the run holds the kernel's CPU wake-up lat
 
 from __future__ import annotations
 
-import argparse
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +41,7 @@ from drivers.session import Connection, connect, mock_url_for
 from drivers.startup import engage, preflight
 
 __all__ = ["EMULATOR_RT_PRIORITY", "BusBenchResult", "bench_bus", "host_code_cpu",
-           "format_result", "main"]
+           "format_result"]
 
 TRANSPORTS = ("pty", "inprocess")
 EMULATOR_RT_PRIORITY = 20  # SCHED_FIFO priority of the emulator process (servo hardware is punctual)
@@ -265,30 +264,3 @@ def format_result(r: BusBenchResult) -> str:
     if r.fast_read_failures or r.timeouts:
         line += f"; {r.fast_read_failures} fast-read failures, {r.timeouts} timeouts"
     return line
-
-
-def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - prints figures
-    p = argparse.ArgumentParser(prog="python -m robot_rise.bench.bus", description=__doc__.split("\n")[0])
-    p.add_argument("--baud", type=int, action="append", help="baud rate(s) [bit/s] (default 1 and 4 Mbps)")
-    p.add_argument("--cycles", type=int, default=500)
-    p.add_argument("--jitter-seconds", type=float, default=3.0)
-    p.add_argument("--transport", choices=TRANSPORTS, default="pty")
-    p.add_argument("--rt-priority", type=int, metavar="P", help="host under SCHED_FIFO priority P")
-    p.add_argument("--emulator-rt-priority", type=int, default=EMULATOR_RT_PRIORITY, metavar="P",
-                   help=f"pty emulator under SCHED_FIFO priority P (default {EMULATOR_RT_PRIORITY}; 0: normal)")
-    p.add_argument("--cpu-idle", action="store_true",
-                   help="let CPUs enter deep idle states (default: hold the CPU wake-up latency at 0 us)")
-    p.add_argument("--spin-ms", type=float, default=SPIN_MARGIN_S * 1e3,
-                   help=f"busy-waited end of each sleep [ms] (default {SPIN_MARGIN_S * 1e3:g})")
-    args = p.parse_args(argv)
-    for baud in args.baud or (1_000_000, 4_000_000):
-        print(format_result(bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds,
-                                      transport=args.transport, realtime_priority=args.rt_priority,
-                                      emulator_rt_priority=args.emulator_rt_priority or None,
-                                      spin_margin_s=args.spin_ms * 1e-3,
-                                      cpu_latency_us=None if args.cpu_idle else 0)), flush=True)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())

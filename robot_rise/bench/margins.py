@@ -8,7 +8,7 @@ margin, every ensemble variant standing: ``robot_rise.filter.check``):
 - whether the verdict flips when every target gets uniform noise of +-``noise_rad`` (1e-6 rad:
   the rounding of a trajectory file), over ``noise_trials`` seeded draws. Each trial is a whole
   ``check``, so it replays the proof's own noisy replays of the noisy targets too
-  (``FilterConfig.noise_replays``): a knife edge flips a trial if any of them finds it.
+  (``ProofConfig.noise_replays``): a knife edge flips a trial if any of them finds it.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robot_rise.constants import TARGET_NOISE_RAD
-from robot_rise.filter import FilterConfig, check, noisy_trajectory, replay_random_variants
+from robot_rise.proof import ProofConfig, check, noisy_trajectory, replay_random_variants
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
 
@@ -65,7 +65,7 @@ def margins_of(
     seed: int = 1,
     noise_trials: int = 3,
     noise_rad: float = NOISE_RAD,
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
 ) -> Margins:
     """Random-variant share and noise flips of ``trajectory`` (see the module docstring)."""
     nominal = check(robot, trajectory, scene=scene, config=config)

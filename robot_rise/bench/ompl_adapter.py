@@ -1,6 +1,6 @@
 """OMPL 2.x (PyPI ``ompl``, nanobind) adapter: an OMPL geometric planner as one of our Planners.
 
-Shared by the planning benchmarks (bench_planning.py, issue 5; bench_energy.py, issue 7) so that
+Shared by the planning benchmarks (bench/planning.py, issue 5; bench/energy.py, issue 7) so that
 OMPL runs on exactly our validity checker and our edge checking: the state space is
 R^3 x SO(3) x R^n (root position, root orientation, joints within their limits) with a compound
 distance weighted like our posture metric, the state validity checker is our ValidityChecker,

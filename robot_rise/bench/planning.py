@@ -19,17 +19,16 @@ clearance (smallest signed distance over the smoothed path).
 
 Run::
 
-    .venv/bin/python -m robot_rise.bench.planning --seed 1 --budget 10 --out out/bench_planning.json
+    .venv/bin/robot-rise bench planning --seed 1 --budget 10 --out out/bench_planning.json
 
 ``--regenerate`` samples and selects the problems again (the library may have changed) and
 overwrites ``--problems``. OMPL (the ``ompl`` PyPI package, ``pip install -e '.[bench]'``) is a
 bench-only dependency; without it only ours runs. The OMPL adapter lives in
-robot_rise/bench/ompl_adapter.py (shared with bench_energy.py).
+robot_rise/bench/ompl_adapter.py (shared with robot_rise/bench/energy.py).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import time
@@ -41,9 +40,10 @@ import numpy as np
 
 from robot_rise.constants import VERIFY_RESOLUTION_M
 from robot_rise.fileio import write_text_atomic
+from robot_rise.library import library_digest
 from robot_rise.model import load_robot
-from robot_rise.bench.problems import FrozenProblem, build_problem_set, library_digest, load_problem_set, save_problem_set
-from robot_rise.bench.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench_energy)
+from robot_rise.bench.problems import FrozenProblem, build_problem_set, load_problem_set, save_problem_set
+from robot_rise.bench.ompl_adapter import OmplPlanner  # the OMPL 2.x adapter (shared with bench/energy.py)
 from robot_rise.planning.motion_validator import MotionValidator
 from robot_rise.planning.problem import PlanningProblem, PlanResult
 from robot_rise.planning.rrt_blossom import BlossomConfig, PlannerConfig, RRTBlossomPlanner
@@ -52,7 +52,8 @@ from robot_rise.planning.space import PostureSpace
 from robot_rise.planning.to_trajectory import path_length, path_min_clearance
 from robot_rise.validity import ValidityChecker
 
-__all__ = ["OmplPlanner", "BenchRow", "run_one", "run_benchmark", "summarize", "main"]
+__all__ = ["OmplPlanner", "BenchRow", "PlanningBenchOptions", "available_planners", "run_one", "run_benchmark", "summarize",
+           "format_table", "bench_planning", "planning_report"]
 
 log = logging.getLogger(__name__)
 BENCH_PLANNING_FORMAT = "robot-rise/bench-planning@1"  # results file of this benchmark
@@ -159,29 +160,39 @@ def format_table(table: list[dict[str, object]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seed", type=int, default=1, help="planner seed of the flat60 problems")
-    ap.add_argument("--budget", type=float, default=10.0, help="planning budget per run [s]")
-    ap.add_argument("--obstacle-seeds", type=int, default=5, help="planner seeds per beam/bed/table problem")
-    ap.add_argument("--planners", default="rrt_blossom,ompl_rrtconnect,ompl_prm")
-    ap.add_argument("--sets", default="flat60,beam,low_bed,table", help="problem sets to run")
-    ap.add_argument("--only", default="", help="comma-separated problem names (e.g. left/4) to run alone")
-    ap.add_argument("--problems", default=None, help="frozen problem file (default configs/bench/planning_problems.json)")
-    ap.add_argument("--regenerate", action="store_true", help="sample and select the problems again and overwrite --problems")
-    ap.add_argument("--sample-seed", type=int, default=1, help="lying-posture sampling seed for --regenerate")
-    ap.add_argument("--turnover-library", default=None, help="with --regenerate: the prone-only library directory of the turnover60 set (commit 8e60c43)")
-    ap.add_argument("--out", default="out/bench_planning.json")
-    args = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    robot = load_robot()
-    if args.regenerate:
-        path = save_problem_set(build_problem_set(robot, seed=args.sample_seed, turnover_library=args.turnover_library), robot, args.problems, seed=args.sample_seed)
-        log.info("wrote %s", path)
-    problems = load_problem_set(robot, args.problems)
-    sets = set(args.sets.split(","))
-    only = set(filter(None, args.only.split(",")))
-    problems = [p for p in problems if p.pset in sets and (not only or p.name in only)]
+@dataclass(frozen=True)
+class PlanningBenchOptions:
+    """What one run of the benchmark runs; the results file records these fields as its ``args``.
+
+    Attributes:
+        seed: planner seed of the flat60 (and turnover60) problems.
+        budget: planning budget per run [s].
+        obstacle_seeds: planner seeds 0..N-1 per beam, low-bed and table problem.
+        planners: comma-separated names of :func:`available_planners` (absent ones are skipped).
+        sets: comma-separated problem sets to run.
+        only: comma-separated problem names (e.g. ``left/4``) to run alone ('' for all).
+        problems: the frozen problem file (None: ``configs/bench/planning_problems.json``).
+        regenerate: sample and select the problems again and overwrite ``problems`` first.
+        sample_seed: lying-posture sampling seed of ``regenerate``.
+        turnover_library: with ``regenerate``, the prone-only library directory of the turnover60 set (commit 8e60c43).
+        out: the results file (``BENCH_PLANNING_FORMAT``), rewritten after every run.
+    """
+
+    seed: int = 1
+    budget: float = 10.0
+    obstacle_seeds: int = 5
+    planners: str = "rrt_blossom,ompl_rrtconnect,ompl_prm"
+    sets: str = "flat60,beam,low_bed,table"
+    only: str = ""
+    problems: str | None = None
+    regenerate: bool = False
+    sample_seed: int = 1
+    turnover_library: str | None = None
+    out: str = "out/bench_planning.json"
+
+
+def available_planners() -> dict[str, Callable[[PlanningProblem], PlanResult]]:
+    """The planners by name: ours (and its ablation ``rrt_blossom_focused``), OMPL's RRT-Connect and PRM when installed."""
     avail: dict[str, Callable[[PlanningProblem], PlanResult]] = {
         "rrt_blossom": RRTBlossomPlanner(),
         # ablation (--planners rrt_blossom_focused): samples only near the start-goal slerp, as before the fix
@@ -194,25 +205,38 @@ def main(argv: list[str] | None = None) -> int:
         avail["ompl_prm"] = OmplPlanner("PRM")
     except ImportError:
         log.warning("ompl is not installed (pip install -e '.[bench]'): only rrt_blossom runs")
-    planners = {k: avail[k] for k in args.planners.split(",") if k in avail}
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    return avail
+
+
+def bench_planning(options: PlanningBenchOptions) -> tuple[list[dict[str, object]], list[BenchRow]]:
+    """Run the benchmark as ``options`` say: (the table of :func:`summarize`, every run).
+
+    The results file ``options.out`` holds the runs so far after each run, and the summary at the end.
+    """
+    robot = load_robot()
+    if options.regenerate:
+        path = save_problem_set(build_problem_set(robot, seed=options.sample_seed, turnover_library=options.turnover_library),
+                                robot, options.problems, seed=options.sample_seed)
+        log.info("wrote %s", path)
+    sets = set(options.sets.split(","))
+    only = set(filter(None, options.only.split(",")))
+    problems = [p for p in load_problem_set(robot, options.problems) if p.pset in sets and (not only or p.name in only)]
+    avail = available_planners()
+    planners = {k: avail[k] for k in options.planners.split(",") if k in avail}
+    out = Path(options.out)
     done: list[BenchRow] = []
-    meta = {"format": BENCH_PLANNING_FORMAT, "args": vars(args), "library_digest_now": library_digest(robot)}
+    meta = {"format": BENCH_PLANNING_FORMAT, "args": asdict(options), "library_digest_now": library_digest(robot)}
 
     def save(row: BenchRow) -> None:
         done.append(row)
         write_text_atomic(out, json.dumps({**meta, "runs": [asdict(r) for r in done]}, indent=1, default=str))
 
-    rows = run_benchmark(problems, seed=args.seed, budget_s=args.budget, planners=planners, obstacle_seeds=args.obstacle_seeds, on_row=save)
+    rows = run_benchmark(problems, seed=options.seed, budget_s=options.budget, planners=planners, obstacle_seeds=options.obstacle_seeds, on_row=save)
     table = summarize(rows)
     write_text_atomic(out, json.dumps({**meta, "summary": table, "runs": [asdict(r) for r in rows]}, indent=1, default=str))
-    print(format_table(table))  # the command's output is the table
-    for r in rows:
-        if not r.solved:
-            print(f"failed: {r.planner} {r.problem} seed {r.seed}: {r.reason}")
-    return 0
+    return table, rows
 
 
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
+def planning_report(table: list[dict[str, object]], rows: list[BenchRow]) -> str:
+    """What ``robot-rise bench planning`` prints: the BENCHMARKS.md table, then one line per failed run."""
+    return "\n".join([format_table(table)] + [f"failed: {r.planner} {r.problem} seed {r.seed}: {r.reason}" for r in rows if not r.solved])

@@ -2,29 +2,28 @@
 
 Run with::
 
-    .venv/bin/python -m robot_rise.bench.player [--library DIR] [--repeat N] [--compare DIR]
+    .venv/bin/robot-rise bench player [--library DIR] [--repeat N] [--compare DIR]
 
 For each motion of the library (default ``configs/motions/op3``) it plays the motion nominally on
 flat ground (default 3 s hold) ``--repeat`` times with one :class:`robot_rise.sim.Player` and
-prints the median wall and CPU (process) time of ``Player.play`` and the physics steps per second
+reports the median wall and CPU (process) time of ``Player.play`` and the physics steps per second
 they give (steps = (duration + hold) / timestep). As the ceiling of any Python loop it also times
 bare ``mj_step`` calls with the same controls (no recording, no checks).
 
 ``--compare DIR`` also plays every motion with another copy of the player, ``DIR/sim.py`` (and
 ``DIR/judge.py`` if present, whose functions replace the ones that sim.py imported from
-robot_rise.sim.standing), interleaved with the current one so both see the same machine load, and prints
-the speed-up. To compare with the last commit::
+robot_rise.sim.standing), interleaved with the current one so both see the same machine load, and reports
+the speed-up (:func:`player_table`). To compare with the last commit::
 
     mkdir -p /tmp/before && git show HEAD:robot_rise/sim/player.py > /tmp/before/sim.py \\
         && git show HEAD:robot_rise/sim/standing.py > /tmp/before/judge.py
-    .venv/bin/python -m robot_rise.bench.player --compare /tmp/before
+    .venv/bin/robot-rise bench player --compare /tmp/before
 
 Single thread. On a shared machine prefer the CPU times, and compare medians of repeated runs.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import platform
 import statistics
@@ -40,7 +39,7 @@ from robot_rise.library import Motion, load_library
 from robot_rise.model import load_robot
 from robot_rise.sim.player import DEFAULT_HOLD_S, Player
 
-__all__ = ["main", "bench"]
+__all__ = ["bench", "player_table"]
 
 
 def _bare_steps_per_s(player: Player, motion: Motion, hold_s: float) -> float:
@@ -121,17 +120,11 @@ def bench(library_dir: str | None, repeat: int, compare: str | None = None, hold
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    ap.add_argument("--library", default=None, help="motion library directory (default: the shipped op3 library)")
-    ap.add_argument("--repeat", type=int, default=5, help="plays per motion (medians reported)")
-    ap.add_argument("--compare", default=None, metavar="DIR", help="also time DIR/sim.py (+ DIR/judge.py), interleaved")
-    args = ap.parse_args(argv)
-    rows = bench(args.library, args.repeat, args.compare)
-    lib = args.library or "configs/motions/op3"
-    print(f"Machine: {platform.machine()}, Python {platform.python_version()}, mujoco {mujoco.__version__}, single thread; library {lib}")
-    print(f"{args.repeat} plays per motion (medians), hold {DEFAULT_HOLD_S} s, 500 Hz physics; steps/s from CPU time\n")
-    cmp = args.compare is not None
+def player_table(rows: list[dict], *, repeat: int, library_dir: str | None = None, compare: str | None = None,
+                 hold_s: float = DEFAULT_HOLD_S) -> str:
+    """The figures of :func:`bench` as BENCHMARKS.md records them: the machine, a Markdown row per motion, the totals."""
+    lib = library_dir or "configs/motions/op3"
+    cmp = compare is not None
     head = "| motion | duration [s] | physics steps |"
     if cmp:
         head += " before wall [s] | before CPU [s] | before steps/s |"
@@ -139,8 +132,9 @@ def main(argv: list[str] | None = None) -> int:
     if cmp:
         head += " speed-up (CPU) |"
     head += " bare mj_step/s |"
-    print(head)
-    print("| --- |" + " ---: |" * (head.count("|") - 2))
+    lines = [f"Machine: {platform.machine()}, Python {platform.python_version()}, mujoco {mujoco.__version__}, single thread; library {lib}",
+             f"{repeat} plays per motion (medians), hold {hold_s} s, 500 Hz physics; steps/s from CPU time", "",
+             head, "| --- |" + " ---: |" * (head.count("|") - 2)]
     for r in rows:
         line = f"| {r['motion']} | {r['duration_s']:.2f} | {r['steps']} |"
         if cmp:
@@ -149,18 +143,13 @@ def main(argv: list[str] | None = None) -> int:
         if cmp:
             line += f" {r['before_cpu_s'] / r['cpu_s']:.2f}x |"
         line += f" {r['bare_steps_per_s']:.0f} |"
-        print(line)
+        lines.append(line)
     steps = sum(r["steps"] for r in rows)
     cpu = sum(r["cpu_s"] for r in rows)
     wall = sum(r["wall_s"] for r in rows)
-    summary = f"\nAll motions: {steps} steps, {wall:.3f} s wall, {cpu:.3f} s CPU = {steps / cpu:.0f} steps/s"
+    summary = f"All motions: {steps} steps, {wall:.3f} s wall, {cpu:.3f} s CPU = {steps / cpu:.0f} steps/s"
     if cmp:
         bcpu = sum(r["before_cpu_s"] for r in rows)
         bwall = sum(r["before_wall_s"] for r in rows)
         summary += f"; before {bwall:.3f} s wall, {bcpu:.3f} s CPU = {steps / bcpu:.0f} steps/s; speed-up {bcpu / cpu:.2f}x CPU, {bwall / wall:.2f}x wall"
-    print(summary)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    return "\n".join([*lines, "", summary])

@@ -26,7 +26,6 @@ section 4.1: "the global position and facing direction ... are roughly aligned")
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import math
@@ -40,6 +39,7 @@ import numpy as np
 from robot_rise.model import Robot
 from robot_rise.placement import align_to_start
 from robot_rise.fileio import write_text_atomic
+from robot_rise.library import library_digest
 from robot_rise.paths import configs_dir
 from robot_rise.posture import Posture, posture_from_dict, posture_to_dict, quat_multiply
 from robot_rise.validity import ValidityChecker
@@ -57,7 +57,6 @@ __all__ = [
     "FLAT60_PER_KIND",
     "FrozenProblem",
     "library_connecting_posture",
-    "library_digest",
     "build_problem_set",
     "save_problem_set",
     "load_problem_set",
@@ -204,17 +203,6 @@ class FrozenProblem:
     goal_source: str
 
 
-def library_digest(robot: Robot) -> str:
-    """SHA-256 (first 16 hex digits) of the robot's motion library files."""
-    from robot_rise.library import robot_library_dir
-
-    h = hashlib.sha256()
-    for f in sorted(robot_library_dir(robot).glob("*.json")):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:16]
-
-
 def library_connecting_posture(ctx: Any, start: Posture) -> tuple[Posture, str]:
     """The connecting posture ``rise`` plans to first (``problem.select_goal``): (goal, ``"library motion@frame (candidate r)"``)."""
     from robot_rise.rise import select_goal  # a benchmark of rise's problems: the planner itself never imports rise
@@ -273,7 +261,7 @@ def save_problem_set(problems: list[FrozenProblem], robot: Robot, path: str | os
         "robot": robot.name,
         "seed": seed,
         "library_digest": library_digest(robot),
-        "note": "issue-5 benchmark problems, frozen; regenerate with bench_planning --regenerate",
+        "note": "issue-5 benchmark problems, frozen; regenerate with robot-rise bench planning --regenerate",
         "problems": [
             {"name": q.name, "set": q.pset, "scene": q.scene, "goal_source": q.goal_source,
              "start": posture_to_dict(q.start), "goal": posture_to_dict(q.goal)}

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_rise.filter import COMPOSED_KEY, Proof
+from robot_rise.proof import COMPOSED_KEY, Proof
 from robot_rise.model import Robot
 from robot_rise.rise import DEFAULT_CANDIDATE_RANK
 from robot_rise.sampling import sample_lying
@@ -99,7 +99,7 @@ class RiseCase:
     # frame on, and the rest: the blend at the join and what the filter added by slowing
     robot_time: dict[str, float] | None = None
     cpu_s: float = float("nan")  # CPU seconds of the rise, all threads (one core's worth of work) [s]
-    composed: bool = False  # its ensemble proof was composed (rise composed=True; robot_rise.filter.composed)
+    composed: bool = False  # its ensemble proof was composed (rise composed=True; robot_rise.proof.composed)
     whole_check: bool | None = None  # a composed output replayed whole on every variant: proven too
     flip_reasons: tuple[str, ...] = ()  # why each noise flip's failing replay failed (bench.margins)
 
@@ -110,9 +110,9 @@ _CONTEXTS: dict[tuple[str, str], object] = {}  # per-process memo of RiseContext
 def _rise_case(args: tuple) -> RiseCase:
     import time as _time
 
-    from robot_rise.filter import stands_under
+    from robot_rise.proof import stands_under
     from robot_rise.model import load_robot
-    from robot_rise.rise import rise
+    from robot_rise.rise import RiseOptions, rise
 
     robot_dir, name, kind, posture, scene, budget_s, seed, robustness, variants, noise_trials, rank, *more = args
     composed = bool(more and more[0])
@@ -128,7 +128,7 @@ def _rise_case(args: tuple) -> RiseCase:
     t0 = _time.perf_counter()
     c0 = _time.process_time()
     try:
-        result = rise(robot, posture, scene=scene, seed=seed, budget_s=budget_s, context=context, candidate_rank=rank, composed=composed)
+        result = rise(robot, posture, RiseOptions(scene=scene, seed=seed, budget_s=budget_s, candidate_rank=rank, composed=composed), context=context)
     except Exception as e:  # a benchmark reports failures, it does not stop on them
         return RiseCase(name, kind, False, _time.perf_counter() - t0, float("nan"), float("nan"), "", f"error: {e}", {})
     wall = _time.perf_counter() - t0
@@ -142,7 +142,7 @@ def _rise_case(args: tuple) -> RiseCase:
     was_composed = result.trajectory is not None and COMPOSED_KEY in result.trajectory.report
     whole = None
     if was_composed and result.proven:
-        from robot_rise.filter import check
+        from robot_rise.proof import check
 
         whole = check(robot, result.trajectory).proven  # the uncomposed proof of the same output
     margins = None

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from robot_rise.errors import FormatError
-from robot_rise.filter import execution_permit
+from robot_rise.proof import execution_permit
 from robot_rise.fileio import read_json
 from robot_rise.model import Robot
 from robot_rise.trajectory import trajectory_from_dict

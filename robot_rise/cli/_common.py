@@ -39,7 +39,7 @@ def load_robot_arg(args: argparse.Namespace) -> Robot:
 def load_trajectory_for(robot: Robot, path: str) -> Trajectory:
     """Read a trajectory file and check it belongs to ``robot`` and starts in a valid posture.
 
-    A start up to two servo ticks past a joint limit is clamped into it, with one warning line
+    A start up to four servo ticks past a joint limit is clamped into it, with one warning line
     (:func:`robot_rise.posture.admit_posture`); the rows are left as written (the executor clamps
     its targets).
     """

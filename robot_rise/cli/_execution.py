@@ -26,7 +26,7 @@ from robot_rise.filter.command_limits import (
     command_limits_of,
     match_command_limits,
 )
-from robot_rise.filter.prediction import expected_positions_of
+from robot_rise.proof.prediction import expected_positions_of
 from robot_rise.model import Robot
 from robot_rise.trajectory import Trajectory
 
@@ -84,7 +84,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
     from drivers.session import connect, mock_url_for
     from drivers.startup import disarm_watchdog, engage, preflight
     from drivers.startup1 import host_stop_guard
-    from robot_rise.filter import execution_permit
+    from robot_rise.proof import execution_permit
 
     if traj.robot and traj.robot != robot.name:
         raise RobotRiseError(f"trajectory is for robot {traj.robot!r}, not {robot.name!r}",

@@ -87,6 +87,7 @@ def _progress_printer():
 def rise_options(args: argparse.Namespace) -> dict:
     """The rise options of the command line (each is part of the task ids)."""
     from robot_rise.filter import FilterConfig
+    from robot_rise.proof import ProofConfig
 
     if args.budget <= 0:
         raise RobotRiseError(f"--budget must be positive, got {args.budget}")
@@ -97,7 +98,7 @@ def rise_options(args: argparse.Namespace) -> dict:
     if args.composed and args.no_ensemble:
         raise RobotRiseError("--composed composes the ensemble proof: it cannot go with --no-ensemble")
     return {"budget_s": args.budget, "candidates": args.candidates,
-            "filter_config": FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble),
+            "filter_config": FilterConfig(proof=ProofConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble)),
             **({"composed": True} if args.composed else {})}
 
 

@@ -110,6 +110,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--json", action="store_true", help="print JSON")
     add_robot_args(t, scene=False)
     t.set_defaults(func=run_tamper)
+    _register_planners(bsub)
     import robot_rise.cli as cli_pkg
 
     for info in pkgutil.iter_modules(cli_pkg.__path__):
@@ -117,6 +118,101 @@ def register(sub: argparse._SubParsersAction) -> None:
             module = importlib.import_module(f"robot_rise.cli.{info.name}")
             if hasattr(module, "register_bench"):
                 module.register_bench(bsub)
+
+
+def _register_planners(bsub: argparse._SubParsersAction) -> None:
+    """The planner benchmarks (issues 5 and 7) and the player's speed."""
+    from robot_rise.bench.energy import PLANNER_NAMES
+    from robot_rise.bench.energy_problems import PROBLEM_KINDS, PROBLEM_SETS
+    from robot_rise.bench.planning import PlanningBenchOptions
+
+    e = bsub.add_parser("energy", help="the energy planner (paper 004) beside RRT-blossom and OMPL RRT-Connect: success, "
+                        "times, length, clearance, jerk", formatter_class=Formatter,
+                        epilog="examples:\n  robot-rise bench energy --sets crossed --n 5 --budget 20 --out out/bench_energy_crossed.json\n"
+                               "  robot-rise bench energy --sets lying60 --budget 10 --lying-cache out/lying60_seed1.json\n"
+                               "  robot-rise bench energy --merge out/bench_energy_crossed.json out/bench_energy_lying60.json")
+    e.add_argument("--sets", nargs="*", default=["crossed"], choices=PROBLEM_SETS, help="problem sets")
+    e.add_argument("--n", type=int, default=5, help="variants per crossed-limb kind")
+    e.add_argument("--budget", type=float, default=30.0, help="planning budget per run [s]")
+    e.add_argument("--seed", type=int, default=0, help="crossed-limb jitter seed and planner seed base")
+    e.add_argument("--lying-seed", type=int, default=1, help="sampling seed of the 60 lying postures")
+    e.add_argument("--planners", nargs="*", default=None, help=f"prefixes of {', '.join(PLANNER_NAMES)}")
+    e.add_argument("--kinds", nargs="*", default=list(PROBLEM_KINDS), choices=PROBLEM_KINDS, help="crossed-limb kinds")
+    e.add_argument("--out", default=None, help="write every run (and the arguments) as JSON here")
+    e.add_argument("--merge", nargs="*", default=None, help="print the tables of saved --out files instead of running")
+    e.add_argument("--lying-cache", default=None, help="keep the sampled lying60 problems in this JSON file (reused when it matches)")
+    e.set_defaults(func=run_energy)
+    d = PlanningBenchOptions()
+    g = bsub.add_parser("planning", help="RRT-blossom beside OMPL's RRT-Connect and PRM on the frozen problems: success, "
+                        "time, length, clearance", formatter_class=Formatter,
+                        epilog="examples:\n  robot-rise bench planning --seed 1 --budget 10 --out out/bench_planning.json\n"
+                               "  robot-rise bench planning --sets turnover60 --seed 1 --budget 10 --out out/bench_planning_turnover60.json")
+    g.add_argument("--seed", type=int, default=d.seed, help="planner seed of the flat60 problems")
+    g.add_argument("--budget", type=float, default=d.budget, help="planning budget per run [s]")
+    g.add_argument("--obstacle-seeds", type=int, default=d.obstacle_seeds, help="planner seeds per beam/bed/table problem")
+    g.add_argument("--planners", default=d.planners,
+                   help=f"comma-separated, of rrt_blossom, rrt_blossom_focused, ompl_rrtconnect, ompl_prm (default {d.planners})")
+    g.add_argument("--sets", default=d.sets, help="problem sets to run")
+    g.add_argument("--only", default=d.only, help="comma-separated problem names (e.g. left/4) to run alone")
+    g.add_argument("--problems", default=d.problems, help="frozen problem file (default configs/bench/planning_problems.json)")
+    g.add_argument("--regenerate", action="store_true", help="sample and select the problems again and overwrite --problems")
+    g.add_argument("--sample-seed", type=int, default=d.sample_seed, help="lying-posture sampling seed for --regenerate")
+    g.add_argument("--turnover-library", default=d.turnover_library,
+                   help="with --regenerate: the prone-only library directory of the turnover60 set (commit 8e60c43)")
+    g.add_argument("--out", default=d.out, help=f"results JSON, rewritten after every run (default {d.out})")
+    g.set_defaults(func=run_planning)
+    y = bsub.add_parser("player", help="physics steps per second of the player, every library motion",
+                        formatter_class=Formatter, epilog="example:\n  robot-rise bench player --repeat 3")
+    y.add_argument("--library", default=None, help="motion library directory (default: the shipped op3 library)")
+    y.add_argument("--repeat", type=int, default=5, help="plays per motion (medians reported)")
+    y.add_argument("--compare", default=None, metavar="DIR", help="also time DIR/sim.py (+ DIR/judge.py), interleaved")
+    y.set_defaults(func=run_player)
+
+
+def run_energy(args: argparse.Namespace) -> int:
+    import time
+
+    from robot_rise.bench.energy import BenchRow, load_rows, run_benchmark, write_results
+    from robot_rise.bench.energy_tables import energy_report
+
+    if args.merge:
+        print(energy_report(load_rows(args.merge)))
+        return 0
+    recorded = {k: getattr(args, k) for k in ("sets", "n", "budget", "seed", "lying_seed", "planners", "kinds", "out", "merge",
+                                              "lying_cache", "verbose")}
+    t0 = time.monotonic()
+    done: list[BenchRow] = []
+
+    def save(row: BenchRow) -> None:  # after every run, so that a long run keeps what it measured
+        done.append(row)
+        if args.out:
+            write_results(args.out, done, args=recorded, wall_s=time.monotonic() - t0)
+
+    rows = run_benchmark(sets=tuple(args.sets), n=args.n, budget_s=args.budget, seed=args.seed, lying_seed=args.lying_seed,
+                         planners=args.planners, kinds=tuple(args.kinds), progress=save, lying_cache=args.lying_cache)
+    if args.out:
+        write_results(args.out, rows, args=recorded, wall_s=time.monotonic() - t0)
+    print(energy_report(rows))
+    print(f"\nwall {time.monotonic() - t0:.0f} s")
+    return 0
+
+
+def run_planning(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from robot_rise.bench.planning import PlanningBenchOptions, bench_planning, planning_report
+
+    options = PlanningBenchOptions(**{f.name: getattr(args, f.name) for f in dataclasses.fields(PlanningBenchOptions)})
+    print(planning_report(*bench_planning(options)))
+    return 0
+
+
+def run_player(args: argparse.Namespace) -> int:
+    from robot_rise.bench.player import bench, player_table
+
+    rows = bench(args.library, args.repeat, args.compare)
+    print(player_table(rows, repeat=args.repeat, library_dir=args.library, compare=args.compare))
+    return 0
 
 
 def run_validity(args: argparse.Namespace) -> int:

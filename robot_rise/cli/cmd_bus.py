@@ -12,6 +12,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def register_bench(bsub: argparse._SubParsersAction) -> None:
+    from drivers.clock import SPIN_MARGIN_S
+    from robot_rise.bench.bus import EMULATOR_RT_PRIORITY
+
     p = bsub.add_parser("bus", help="cycle rate vs wire limit, host CPU per cycle, jitter at 100 Hz",
                         formatter_class=Formatter, epilog="example:\n  robot-rise bench bus --cycles 500")
     p.add_argument("--cycles", type=int, default=500, help="back-to-back cycles per baud rate")
@@ -26,6 +29,10 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
     p.add_argument("--cpu-idle", action="store_true",
                    help="let CPUs enter deep idle states (default: hold the kernel's CPU wake-up latency at "
                         "0 us where permitted, as the executor does while streaming)")
+    p.add_argument("--emulator-rt-priority", type=int, default=EMULATOR_RT_PRIORITY, metavar="P",
+                   help=f"pty emulator under SCHED_FIFO priority P where permitted (default {EMULATOR_RT_PRIORITY}; 0: normal)")
+    p.add_argument("--spin-ms", type=float, default=None, metavar="MS",
+                   help=f"busy-waited end of each sleep [ms] (default {SPIN_MARGIN_S * 1e3:g})")
     p.set_defaults(func=run)
     p = bsub.add_parser("bus1", help="Protocol 1.0: cycles/s of a 20-servo bus vs the wire limit, host CPU per cycle",
                         formatter_class=Formatter,
@@ -52,10 +59,13 @@ def run_bus1(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drivers.clock import SPIN_MARGIN_S
     from robot_rise.bench.bus import bench_bus, format_result
 
+    spin_s = SPIN_MARGIN_S if args.spin_ms is None else args.spin_ms * 1e-3
     for baud in args.baud or (1_000_000, 4_000_000):
         r = bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds, transport=args.transport,
-                      realtime_priority=args.rt_priority, cpu_latency_us=None if args.cpu_idle else 0)
-        print(format_result(r))
+                      realtime_priority=args.rt_priority, emulator_rt_priority=args.emulator_rt_priority or None,
+                      spin_margin_s=spin_s, cpu_latency_us=None if args.cpu_idle else 0)
+        print(format_result(r), flush=True)  # each baud rate as it is measured
     return 0

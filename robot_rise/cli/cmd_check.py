@@ -6,7 +6,7 @@ import argparse
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, load_trajectory_for, print_json
 from robot_rise.errors import PostureError, RobotRiseError
-from robot_rise.filter import EnsembleResult, FilterConfig, check, replay_random_variants, scene_digest
+from robot_rise.proof import EnsembleResult, ProofConfig, check, replay_random_variants, scene_digest
 from robot_rise.validity import ValidityChecker
 
 
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n  robot-rise check out/rise.json --scene flat\n  robot-rise check out/rise.json --variants 50 --seed 1",
     )
     p.add_argument("trajectory", metavar="TRAJ", help="trajectory file (robot-rise/trajectory@1)")
-    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="envelope margin (default: 0.10)")
+    p.add_argument("--margin", type=float, default=ProofConfig().envelope_margin, help="envelope margin (default: 0.10)")
     p.add_argument("--no-ensemble", action="store_true", help="the nominal model only (faster; not the proof standard)")
     p.add_argument("--variants", type=int, default=0, metavar="N", help="also replay N random model variants and report the share that stands")
     p.add_argument("--seed", type=int, default=0, help="seed of the random variants (default: 0)")
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     other_scene = bool(tr.report.get("scene_digest")) and tr.report.get("scene_digest") != scene_digest(args.scene)
     # the proof standard: the nominal replay, its noisy replays, the ensemble and the combined
     # variants its proof replayed (robot_rise.filter.check)
-    config = FilterConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble)
+    config = ProofConfig(envelope_margin=args.margin, ensemble=not args.no_ensemble)
     proof = check(robot, tr, scene=args.scene, config=config)
     randoms = replay_random_variants(robot, tr, args.variants, args.seed, scene=args.scene, config=config) if args.variants else None
     if args.json:

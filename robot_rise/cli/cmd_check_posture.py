@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=LIMIT_CLAMP_TOLERANCE_RAD,
         help=f"angles up to this far past a joint limit are clamped into it, further is an error [rad] "
-        f"(default: two servo ticks, {LIMIT_CLAMP_TOLERANCE_RAD:.5f})",
+        f"(default: four servo ticks, {LIMIT_CLAMP_TOLERANCE_RAD:.5f})",
     )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     add_robot_args(p)

@@ -14,10 +14,10 @@ from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_rob
 from robot_rise.cli._execution import ExecutionConfig, execute_trajectory
 from robot_rise.cli.cmd_report import report_lines
 from robot_rise.errors import RobotRiseError
-from robot_rise.filter import Proof, prove
+from robot_rise.proof import Proof, prove
 from robot_rise.report import write_report
 from robot_rise.posture import write_posture
-from robot_rise.rise import rise
+from robot_rise.rise import RiseOptions, rise
 from robot_rise.sampling import classify_lying, sample_lying
 from robot_rise.trajectory import read_trajectory, write_trajectory
 
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     lying = out / "lying.json"
     write_posture(lying, posture)
     print(f"1. sampled a settled {classify_lying(posture.root_quat_wxyz)} posture -> {lying}")
-    result = rise(robot, posture, scene=args.scene, seed=args.seed)
+    result = rise(robot, posture, RiseOptions(scene=args.scene, seed=args.seed))
     if not result.proven or result.trajectory is None:
         raise RobotRiseError(f"rise failed: {result.reason}", hint="try another --seed or --kind")
     traj = out / "rise.json"

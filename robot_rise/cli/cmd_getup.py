@@ -1,8 +1,8 @@
 """robot-rise getup: one shot from the present state: estimate, plan, prove, execute, confirm, retry.
 
 Also the wiring ``getup`` and ``guard`` share (:func:`open_live_session`): the robot as
-``robot_rise.live.getup.RobotIO`` over ``drivers`` (the servo group and the OpenCR IMU on one bus,
-a real port or the emulated bus, optionally moved by the physics twin).
+``robot_rise.live.io.RobotIO`` over ``drivers`` (:class:`robot_rise.cli._bus_io.BusRobotIO`: the servo
+group and the OpenCR IMU on one bus, a real port or the emulated bus, optionally moved by the physics twin).
 """
 
 from __future__ import annotations
@@ -11,25 +11,22 @@ import argparse
 import contextlib
 import dataclasses
 import math
-import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from robot_rise.cli._bus_io import BusRobotIO
 from robot_rise.cli._common import Formatter, print_json
 from robot_rise.errors import RobotRiseError
 
 if TYPE_CHECKING:
-    from drivers.imu import ImuSample, OpenCrImu
-    from drivers.servo_map import ServoMap
-    from drivers.session import Connection
     from robot_rise.live.estimate import PostureEstimator
-    from robot_rise.live.getup import ExecutionResult, GetUpConfig, Health, KeyframePlanner, RisePlanner
+    from robot_rise.live.getup import GetUpConfig
+    from robot_rise.live.planners import KeyframePlanner, RisePlanner
     from robot_rise.model import Robot
     from robot_rise.posture import Posture
     from robot_rise.sim.twin import MujocoTwin
-    from robot_rise.trajectory import Trajectory
 
 EPILOG = """examples:
   robot-rise getup --port /dev/ttyUSB0                      # the robot on the floor gets up
@@ -43,7 +40,6 @@ exit code: 0 standing at the end; 1 not standing (gave up, limp); 2 refused inpu
 """
 
 STOCK_PITCH_DEG = 60.0  # [deg] the stock OP3's fall test: torso pitch past 60 deg, front or back
-WATCHDOG_S = 0.1  # [s] Bus Watchdog while a get-up streams (the executor's, as robot-rise execute)
 # the twin's OpenCR: the sensor errors of sim_tests/test_fall_detection.py (noise, bias per axis)
 IMU_NOISE = {"gyro_noise_rad_s": 0.01, "accel_noise_m_s2": 0.05, "gyro_bias_rad_s": (0.02, -0.01, 0.01),
              "accel_bias_m_s2": (0.1, -0.1, 0.05), "orientation_noise_rad": 0.005}
@@ -86,184 +82,6 @@ def scheme_config(scheme: str, config: GetUpConfig) -> GetUpConfig:
     return config
 
 
-# ---- the robot over drivers --------------------------------------------------------------------
-
-
-class BusRobotIO:
-    """``robot_rise.live.getup.RobotIO`` over one bus: the servo group and the OpenCR IMU.
-
-    Args:
-        robot: the robot model (its proofs are checked against it before streaming).
-        servo_map: the servos.
-        connection: the open bus (preflighted).
-        imu: the IMU on that bus.
-        simulated: the bus clock is simulated (``spent`` lets thinking time pass on it).
-        twin: the physics twin moving the emulated servos (the truth), if any.
-        allow_unproven: stream unproven trajectories too, without a tracking limit (the stock
-            OP3 scheme's keyframes, for comparison; the stock OP3 watches no tracking error).
-    """
-
-    def __init__(self, robot: Robot, servo_map: ServoMap, connection: Connection, imu: OpenCrImu, *,
-                 simulated: bool = False, twin: MujocoTwin | None = None, allow_unproven: bool = False) -> None:
-        from drivers.safety import SafetyLimits, voltage_limits_for_supply
-
-        self.robot = robot
-        self.map = servo_map
-        self.connection = connection
-        self.group = connection.group
-        self.clock = connection.bus.clock
-        self.imu = imu
-        self.simulated = simulated
-        self.twin = twin
-        volts = voltage_limits_for_supply(servo_map.bus.supply_voltage_v)
-        self.limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad, **volts)
-        self.allow_unproven = allow_unproven
-        self.unproven_limits = SafetyLimits(servo_map.lower_rad, servo_map.upper_rad, max_tracking_error_rad=math.pi, **volts)
-        self.executions: list[Any] = []  # the executor's reports, in order
-
-    # clock
-    def now_s(self) -> float:
-        return float(self.clock.now())
-
-    def sleep(self, duration_s: float) -> None:
-        self.clock.sleep(duration_s)
-
-    def spent(self, compute_s: float) -> None:
-        if self.simulated and compute_s > 0:
-            self.clock.sleep(compute_s)
-
-    # sensing
-    def read_joints(self) -> dict[str, float]:
-        fb = self.group.read_feedback()
-        return {s.joint: float(q) for s, q, ok in zip(self.map.servos, fb.position_rad, fb.valid) if ok}
-
-    def read_imu(self) -> ImuSample:
-        return self.imu.read()
-
-    def health(self) -> Health:
-        from drivers.control_table import HardwareErrorBits
-        from robot_rise.live.getup import Health
-
-        fb = self.group.read_feedback()
-        servos = self.map.servos
-        ok = [k for k in range(len(servos)) if fb.valid[k]]
-        return Health(
-            temperatures_c={servos[k].joint: float(fb.temperature_c[k]) for k in ok},
-            voltages_v={servos[k].joint: float(fb.voltage_v[k]) for k in ok},
-            hardware_errors={servos[k].joint: HardwareErrorBits.describe(int(fb.alert[k])) for k in ok if fb.alert[k]},
-            missing=tuple(servos[k].joint for k in range(len(servos)) if not fb.valid[k]),
-        )
-
-    def true_posture(self) -> Posture:
-        if self.twin is None:
-            raise RobotRiseError("no twin: the true posture is unknown")
-        return self.twin.posture()
-
-    # acting
-    def execute(self, trajectory: Trajectory) -> ExecutionResult:
-        from drivers.errors import DriverError
-        from drivers.executor import Executor, ExecutorConfig
-        from drivers.safety import FaultKind, StopPolicy
-        from drivers.startup import engage
-        from robot_rise.filter import execution_permit
-        from robot_rise.live.getup import ExecutionResult
-
-        limits = self.limits
-        try:
-            if self.allow_unproven and not execution_permit(trajectory.report, self.robot, trajectory).allowed:
-                expected, tilt, limits = None, None, self.unproven_limits
-            else:
-                expected, tilt = self._permit(trajectory)
-            engage(self.group, watchdog_s=WATCHDOG_S)
-        except (DriverError, RobotRiseError) as e:
-            return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
-        # no automatic reboot of a servo that shut down on a hardware error: rebooting clears the
-        # error, and the health check before the next try is what must see it (and refuse)
-        # the IMU is read in every cycle: a torso off the proof's tilt is a fall, not a get-up
-        config = ExecutorConfig(stop_policy=StopPolicy.HOLD, expected=expected, recovery_attempts=0,
-                                cpu_latency_us=None if self.simulated else 0, imu=self.imu, expected_tilt=tilt)
-        first = self.now_s()
-        try:
-            rep = Executor(self.group, limits, config).run(trajectory.joint_names, trajectory.t, trajectory.q)
-        except DriverError as e:  # refused before anything moved (a far start)
-            self._disarm()
-            return ExecutionResult(False, None, self.now_s(), f"refused: {e}")
-        self._disarm()
-        self.executions.append(rep)
-        if any(f.kind is FaultKind.FALLING for f in rep.faults):
-            self.go_limp()  # falling: servos that hold would fight the impact
-        reason = "; ".join(f"{f.kind.value} at {self._fault_site(f)}: "
-                           f"{f.message.removeprefix(f'joint {f.index}: ')}" for f in rep.faults)
-        servos = self.map.servos
-        lagging = tuple(dict.fromkeys(servos[f.index].joint for f in rep.faults
-                                      if f.kind is FaultKind.TRACKING and 0 <= f.index < len(servos)))
-        return ExecutionResult(rep.completed, first, self.now_s(), reason, rep.interrupted, lagging)
-
-    def _fault_site(self, fault: Any) -> str:
-        """Which servo an executor fault is about (its index is in map order; -1: the bus, or
-        the IMU for a fall)."""
-        from drivers.safety import FaultKind
-
-        servos = self.map.servos
-        if fault.kind is FaultKind.FALLING:
-            return f"the IMU (id {self.imu.device_id})"
-        return servos[fault.index].label if 0 <= fault.index < len(servos) else "the bus"
-
-    def _disarm(self) -> None:
-        from drivers.errors import CommunicationError
-        from drivers.startup import disarm_watchdog
-
-        try:
-            disarm_watchdog(self.group)
-        except CommunicationError as e:
-            print(f"warning: could not disarm the Bus Watchdog: {e}", file=sys.stderr)
-
-    def _permit(self, trajectory: Trajectory):
-        """Executed = proven (as robot-rise execute): the proof is this robot's, under these
-        command limits; returns the proof's predicted positions and torso tilt as the executor's
-        expected ones (None where the proof has none)."""
-        from drivers.safety import ExpectedPositions, ExpectedTilt
-        from robot_rise.filter import execution_permit
-        from robot_rise.filter.command_limits import CommandLimits, command_limits_of, match_command_limits
-        from robot_rise.filter.prediction import expected_positions_of
-        from drivers.executor import DEFAULT_RATE_HZ
-
-        permit = execution_permit(trajectory.report, self.robot, trajectory)
-        if not permit.allowed:
-            raise RobotRiseError(permit.reason)
-        proven_limits = command_limits_of(trajectory.report)
-        if proven_limits is not None:
-            executing = CommandLimits(self.map.joint_names, self.map.lower_rad, self.map.upper_rad,
-                                      self.limits.max_velocity_rad_s, DEFAULT_RATE_HZ)
-            match = match_command_limits(proven_limits, executing, speed=1.0)
-            if not match.ok:
-                raise RobotRiseError(match.reason, hint=match.hint)
-        predicted = expected_positions_of(trajectory.report)
-        if predicted is None:
-            return None, None
-        idx = self.map.index_of(predicted.joint_names)
-        tilt = None if predicted.tilt_rad is None else ExpectedTilt(predicted.t_s, predicted.tilt_rad, predicted.tilt_tolerance_rad)
-        return ExpectedPositions(predicted.t_s, predicted.q_rad[:, idx], predicted.tolerance_rad[idx]), tilt
-
-    def go_limp(self) -> None:
-        from drivers.errors import CommunicationError
-
-        try:
-            self.group.torque(False, quarantined_too=True)
-        except CommunicationError as e:  # the servos' own watchdog and the next try still stand
-            print(f"warning: torque off failed: {e}", file=sys.stderr)
-
-    def hold(self) -> str:
-        from drivers.errors import DriverError
-        from drivers.startup import engage
-
-        try:
-            engage(self.group, watchdog_s=None)
-        except DriverError as e:  # a joint past its limit, a silent servo: say why, do not move
-            return str(e)
-        return ""
-
-
 @dataclass
 class LiveSession:
     """What ``getup`` and ``guard`` run on: the robot IO, the planner, the estimator, the twin."""
@@ -288,7 +106,7 @@ def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
     on a simulated clock), preflight, find the IMU; precompute the per-robot parts (rise context
     with the ensemble's players, the posture estimator). ``stock``: the stock OP3's keyframe
     planner instead (comparison). ``composed``: proofs composed with the library motions' start
-    proofs (``robot_rise.filter.composed``), all precomputed here (a guard waits for falls; a
+    proofs (``robot_rise.proof.composed``), all precomputed here (a guard waits for falls; a
     one-shot get-up would spend more on them than they save)."""
     from drivers.clock import FakeClock
     from drivers.imu import OpenCrImu
@@ -298,7 +116,7 @@ def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
     from drivers.session import connect, mock_url_for
     from drivers.startup import preflight
     from robot_rise.live.estimate import PostureEstimator
-    from robot_rise.live.getup import KeyframePlanner, RisePlanner
+    from robot_rise.live.planners import KeyframePlanner, RisePlanner
     from robot_rise.model import load_robot
     from robot_rise.posture import stand_posture
     from robot_rise.rise import RiseContext
@@ -392,7 +210,8 @@ def print_getup_report(report: Any, *, t_origin: float = 0.0) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_rise.live.getup import GetUpConfig, get_up, health_limits_for_supply
+    from robot_rise.live.getup import GetUpConfig, get_up
+    from robot_rise.live.health import health_limits_for_supply
 
     if args.attempts < 1:
         raise RobotRiseError(f"--attempts {args.attempts}: at least 1")

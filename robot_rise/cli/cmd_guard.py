@@ -13,7 +13,8 @@ from robot_rise.cli.cmd_getup import add_live_args, open_live_session, print_get
 from robot_rise.errors import RobotRiseError
 
 if TYPE_CHECKING:
-    from robot_rise.live.getup import GuardEvent, PushOutcome
+    from robot_rise.bench.pushes import PushOutcome
+    from robot_rise.live.guard import GuardEvent
     from robot_rise.model import Robot
     from robot_rise.sim.twin import MujocoTwin
 
@@ -53,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 class TwinPusher:
-    """``robot_rise.live.getup.Pusher`` on the physics twin."""
+    """``robot_rise.bench.pushes.Pusher`` on the physics twin."""
 
     def __init__(self, robot: Robot, twin: MujocoTwin) -> None:
         self.robot = robot
@@ -85,7 +86,10 @@ def _push_line(o: PushOutcome) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_rise.live.getup import GetUpConfig, PushConfig, guard, health_limits_for_supply, push_trials, summarize_pushes
+    from robot_rise.bench.pushes import PushConfig, push_trials, summarize_pushes
+    from robot_rise.live.getup import GetUpConfig
+    from robot_rise.live.guard import guard
+    from robot_rise.live.health import health_limits_for_supply
 
     if args.attempts < 1:
         raise RobotRiseError(f"--attempts {args.attempts}: at least 1")

@@ -75,7 +75,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="re-prove every motion in place (fresh proofs in the files' reports; rows kept)",
         description="Replay every motion of the library from its start posture, judge it, and write the proof into "
         "the file's report (what execute checks before anything moves), without re-authoring it: after the robot "
-        "files or the proof changed. A start or row up to two servo ticks past a joint limit is clamped into it; "
+        "files or the proof changed. A start or row up to four servo ticks past a joint limit is clamped into it; "
         "other rows and entries are kept byte for byte, files are written atomically and only when they change. "
         "Exit code 0 if every motion is proven, 1 if not (its failing proof is written).",
         epilog="Example: robot-rise library prove --dir /tmp/op3",

@@ -9,7 +9,7 @@ from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_rob
 from robot_rise.cli._common import load_trajectory_for
 from robot_rise.cli.cmd_render import add_camera_args, camera_from_args
 from robot_rise.errors import RobotRiseError
-from robot_rise.filter import FilterConfig
+from robot_rise.proof import ProofConfig
 from robot_rise.report import ReportResult, write_report
 
 __all__ = ["register", "run"]
@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_camera_args(p)
     p.add_argument("--no-video", action="store_true", help="key frames only (faster)")
     p.add_argument("--frames", type=int, default=8, metavar="N", help="key frames (default: 8)")
-    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="envelope margin of the check (default: 0.10)")
+    p.add_argument("--margin", type=float, default=ProofConfig().envelope_margin, help="envelope margin of the check (default: 0.10)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_robot_args(p)
     p.set_defaults(func=run)
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         camera=camera_from_args(args),
         video=not args.no_video,
         key_frames=args.frames,
-        filter_config=FilterConfig(envelope_margin=args.margin),
+        proof_config=ProofConfig(envelope_margin=args.margin),
         progress=Progress("render", 1),
     )
     if args.json:

@@ -6,10 +6,11 @@ import argparse
 import sys
 
 from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
-from robot_rise.filter import FilterConfig, Proof
+from robot_rise.filter import FilterConfig
+from robot_rise.proof import Proof, ProofConfig
 from robot_rise.library import load_library
 from robot_rise.posture import read_posture
-from robot_rise.rise import DEFAULT_CANDIDATES, rise
+from robot_rise.rise import DEFAULT_CANDIDATES, RiseOptions, rise
 from robot_rise.trajectory import write_trajectory
 
 
@@ -32,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="planner seed (default: 0)")
     p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS", help="planning budget per candidate (default: 30)")
     p.add_argument("--candidates", type=int, default=DEFAULT_CANDIDATES, help=f"library motions to try (default: {DEFAULT_CANDIDATES})")
-    p.add_argument("--margin", type=float, default=FilterConfig().envelope_margin, help="torque envelope margin (default: 0.10)")
+    p.add_argument("--margin", type=float, default=ProofConfig().envelope_margin, help="torque envelope margin (default: 0.10)")
     p.add_argument("--library", metavar="DIR", help="motion library directory (default: the robot's shipped one)")
     p.add_argument("--write-unproven", action="store_true", help="write the best unproven attempt too (exit code stays 1)")
     p.add_argument("--composed", action="store_true",
@@ -55,11 +56,9 @@ def run(args: argparse.Namespace) -> int:
         if tty:
             print(f"  {stage}...", file=sys.stderr)
 
-    result = rise(
-        robot, start, scene=args.scene, key=key, seed=args.seed, budget_s=args.budget, library=library,
-        candidates=args.candidates, filter_config=FilterConfig(envelope_margin=args.margin), progress=progress,
-        composed=args.composed,
-    )
+    options = RiseOptions(scene=args.scene, key=key, seed=args.seed, budget_s=args.budget, library=library, candidates=args.candidates,
+                          filter_config=FilterConfig(proof=ProofConfig(envelope_margin=args.margin)), composed=args.composed)
+    result = rise(robot, start, options, progress=progress)
     wrote = False
     if result.trajectory is not None and (result.proven or args.write_unproven):
         write_trajectory(args.out, result.trajectory)

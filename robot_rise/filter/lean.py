@@ -112,12 +112,13 @@ def arm_levers(robot: Robot, model: mujoco.MjModel, robot_geoms: np.ndarray) -> 
     return out
 
 
-def lean_offsets(tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: np.ndarray) -> tuple[np.ndarray, float] | None:
+def lean_offsets(tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: np.ndarray,
+                 plan_rows: int | None = None) -> tuple[np.ndarray, float] | None:
     """Shoulder pitch offsets per row [rad] that lean the torso as ``tr.root`` (the library) does.
 
     Where the recording has the body propped on an arm and a foot (both touch the world, the
     ``trunk`` geoms (columns of the root body's geoms) do not), after the planned path
-    (``report["plan_rows"]``), the lean error is the reference torso
+    (``plan_rows``: the join row), the lean error is the reference torso
     pitch (:func:`torso_pitch_rad` of ``tr.root``) minus the simulated one, clipped to
     LEAN_MAX_STEP_RAD; it is smoothed over LEAN_SMOOTH_S, held from the last row measured to the
     end, ramped in over SLOPE_RAMP_S before the first, and turned into ``-LEAN_GAIN * error * axis_y`` on each
@@ -137,8 +138,7 @@ def lean_offsets(tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: 
             arms |= contact[:, lever.geoms].any(axis=1)
     idx = np.clip(np.searchsorted(rec.t, tr.t), 0, len(rec.t) - 1)
     valid = (feet & arms & ~contact[:, trunk].any(axis=1))[idx] & (tr.t <= tr.duration_s)
-    rows = tr.report.get("plan_rows")
-    valid[: rows if isinstance(rows, int) and rows > 0 else 1] = False  # the plan's root is kinematic, not a lean to follow
+    valid[: plan_rows if plan_rows is not None and plan_rows > 0 else 1] = False  # the plan's root is kinematic, not a lean to follow
     if valid.sum() < 2:
         return None
     ref = torso_pitch_rad(tr.root[:, 3:])
@@ -158,11 +158,11 @@ def lean_offsets(tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: 
 
 
 def adapt_lean(
-    robot: Robot, tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: np.ndarray, total: np.ndarray
+    robot: Robot, tr: Trajectory, rec: Recording, levers: list[ArmLever], trunk: np.ndarray, total: np.ndarray, plan_rows: int | None = None
 ) -> tuple[Trajectory, np.ndarray, float] | None:
     """``tr`` with :func:`lean_offsets` added (the total clipped to LEAN_MAX_OFFSET_RAD and the
     joint limits); None when the lean already matches within LEAN_MIN_RAD."""
-    got = lean_offsets(tr, rec, levers, trunk)
+    got = lean_offsets(tr, rec, levers, trunk, plan_rows)
     if got is None or got[1] < LEAN_MIN_RAD:
         return None
     new_total = np.clip(total + got[0], -LEAN_MAX_OFFSET_RAD, LEAN_MAX_OFFSET_RAD)

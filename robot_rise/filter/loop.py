@@ -56,14 +56,14 @@ import numpy as np
 
 from robot_rise.filter.command_limits import COMMAND_LIMITS_KEY, CommandLimits, command_limits_for, conform
 from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, EnsembleResult, with_ensemble
+from robot_rise.proof.ensemble import COMBINED_VARIANTS_KEY, EnsembleReplayer, EnsembleResult, with_ensemble
 from robot_rise.filter.join import time_scale
-from robot_rise.filter.prediction import PREDICTED_KEY, predicted_positions
+from robot_rise.proof.prediction import PREDICTED_KEY, predicted_positions
 from robot_rise.filter.lean import LEAN_ITERATIONS, adapt_lean, arm_levers
-from robot_rise.filter.noise import NOISE_CHECK_KEY, NoiseCheck, noise_check, with_noise
-from robot_rise.filter.proof import Proof, prove_with_violations
+from robot_rise.proof.noise import NOISE_CHECK_KEY, NoiseCheck, noise_check, with_noise
+from robot_rise.proof.verdict import Proof, prove_with_violations
 from robot_rise.filter.slope import SLOPE_MIN_RAD, ground_tilt_vector, turn_stance_to_slope
-from robot_rise.filter.violations import Violation, find_violations, saturation_rad
+from robot_rise.proof.violations import Violation, find_violations, saturation_rad
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
@@ -135,14 +135,14 @@ def dynamics_filter(
         robot: the robot.
         commanded: first guess of the servo targets (e.g. join_with_blend(plan, motion, frame)).
         scene: scene the motion is proven in.
-        config: filter tuning (``config.ensemble`` switches the ensemble proof).
+        config: filter tuning (``config.proof.ensemble`` switches the ensemble proof).
         start: the posture the robot really lies in (default: commanded.start).
         protect_until_s: never stretch before this time (e.g. to keep a key posture's timing).
         join_row: the first row of the library motion (``join_with_blend``, ``join_with_overlap``); with
             ``config.max_stretch`` the motion from there on is slowed to at most that multiple of
             its commanded duration (the approach before it as far as ``max_duration_s``).
         progress: called as progress(iteration, max_iterations).
-        ensemble: the variants' players to reuse (default: built here when ``config.ensemble``).
+        ensemble: the variants' players to reuse (default: built here when ``config.proof.ensemble``).
         command_limits: what the executor will enforce (default: ``command_limits_for(robot)``):
             the targets are kept within them, so executing the proven trajectory clamps nothing.
         stop_at_join: a nominal replay already over the torque margin when it reaches
@@ -158,7 +158,7 @@ def dynamics_filter(
     # proven with headroom under the bound `check` judges: a fresh noise draw keeps the verdict
     config = config.proving()
     player = Player(robot, scene)
-    if config.ensemble and ensemble is None:
+    if config.proof.ensemble and ensemble is None:
         ensemble = EnsembleReplayer(robot, scene)
     limits = command_limits or command_limits_for(robot)
     noise_rounds = 0
@@ -169,14 +169,14 @@ def dynamics_filter(
     def noised(result: FilterResult, stop: bool, rounds: bool = True) -> FilterResult:
         """``result``'s noise check (``noise.py``), slowing where a noisy replay breaks (``rounds``)."""
         nonlocal noise_rounds
-        while result.proven and config.noise_replays > 0:
-            checked, recs = noise_check(result.trajectory, result.recording, player, start=start, config=config)
+        while result.proven and config.proof.noise_replays > 0:
+            checked, recs = noise_check(result.trajectory, result.recording, player, start=start, config=config.proof)
             result = _with_noise_check(result, checked)
             if checked.holds or not rounds or noise_rounds >= config.noise_rounds:
                 break
             noise_rounds += 1
             saturation = saturation_rad(robot)
-            found = [v for r, c in zip(recs, checked.replays) if not c.holds for v in find_violations(r, config, saturation_rad=saturation)]
+            found = [v for r, c in zip(recs, checked.replays) if not c.holds for v in find_violations(r, config.proof, saturation_rad=saturation)]
             slowed = _slowed(result.trajectory, found, config, protect_until_s)
             if slowed.duration_s > config.max_duration_s or _overstretched(slowed, commanded, join_row, _stretch_cap(config)):
                 break
@@ -215,7 +215,7 @@ def dynamics_filter(
         nonlocal ensemble_s
         t0 = time.perf_counter()
         assert ensemble is not None
-        out = ensemble.replay(tr, start=start, config=config)
+        out = ensemble.replay(tr, start=start, config=config.proof)
         ensemble_s += time.perf_counter() - t0
         return out
 
@@ -266,7 +266,7 @@ def dynamics_filter(
         rounds += 1
         # the motion is a fluke of the nominal model: slow where the falling variants went wrong
         saturation = saturation_rad(robot)
-        found = [v for r, vv in zip(recs, replayed.verdicts) if not vv.standing for v in find_violations(r, config, saturation_rad=saturation)]
+        found = [v for r, vv in zip(recs, replayed.verdicts) if not vv.standing for v in find_violations(r, config.proof, saturation_rad=saturation)]
         slowed = _slowed(result.trajectory, found, config, protect_until_s)
         if slowed.duration_s > config.max_duration_s or _overstretched(slowed, commanded, join_row, config.motion_max_stretch):
             break
@@ -277,7 +277,7 @@ def dynamics_filter(
         result, recs = again, []
     # what the executor needs: the limits it was proven under, the positions to expect
     executed = {TRIM_KEY: trims, COMMAND_LIMITS_KEY: limits.to_dict(), PREDICTED_KEY: predicted_positions(result.recording, ensemble=recs),
-                COMBINED_VARIANTS_KEY: config.combined_variants,
+                COMBINED_VARIANTS_KEY: config.proof.combined_variants,
                 "ensemble_seconds": ensemble_s, "ensemble_rounds": rounds, "noise_rounds": noise_rounds}
     return dataclasses.replace(result, report={**result.report, **executed},
                                trajectory=dataclasses.replace(result.trajectory, report={**result.trajectory.report, **executed}))
@@ -319,7 +319,7 @@ def _nominal_filter(
         it += 1
         current = conform(current, limits)
         stop_at_s = float(current.t[join_row]) if stop_at_join and join_row is not None and 0 < join_row < len(current.t) else None
-        rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config, player=player, start=start,
+        rec, verdict, proof, found = prove_with_violations(robot, current, scene=scene, config=config.proof, player=player, start=start,
                                                            saturation_rad=saturation, stop_at_s=stop_at_s)
         if slope_pending and not proof.proven and rec.stopped_s is None:
             # flat-ground stance on a slope: turn it to the slope once, in the heading the robot stood in
@@ -334,7 +334,7 @@ def _nominal_filter(
         violations = [v for v in found if v.t_start_s <= current.duration_s]
         if lean_used < LEAN_ITERATIONS and not verdict.standing and current.root is not None and not any(v.kind == "torque" for v in violations):
             # torque first (time scaling changes how the body moves); then a lean other than the library's on arms and feet
-            adapted = adapt_lean(robot, current, rec, levers, trunk, lean_total)
+            adapted = adapt_lean(robot, current, rec, levers, trunk, lean_total, join_row)
             if adapted is not None:
                 lean_used += 1
                 history.append(FilterIteration(it, current.duration_s, verdict.peak_envelope_ratio, verdict.standing, (f"lean on arms and feet adapted (error {math.degrees(adapted[2]):.1f} deg)",)))
@@ -419,7 +419,7 @@ def _trim(
     if np.any(np.diff(added) < -1e-9):  # not a stretch of the guess's clock: leave it be
         return None
     saturation = saturation_rad(robot)
-    allowed = len([v for v in find_violations(result.recording, config, saturation_rad=saturation) if v.t_start_s <= final.duration_s])
+    allowed = len([v for v in find_violations(result.recording, config.proof, saturation_rad=saturation) if v.t_start_s <= final.duration_s])
     one = dataclasses.replace(config, max_iterations=1, soft_iterations=0)
     best: tuple[float, FilterResult] | None = None
     lo, hi = 0.0, 1.0  # the fraction of the added time kept: hi proven, lo not (or, at 0, the guess's own timing, not replayed here)

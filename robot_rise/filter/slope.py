@@ -14,7 +14,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from robot_rise.filter.timeline import feet_from
+from robot_rise.proof.timeline import feet_from
 from robot_rise.model import Robot, model_index
 from robot_rise.posture import Posture, yaw_rad
 from robot_rise.sim.player import Recording

@@ -7,6 +7,7 @@ start posture file and ``connect_until_s``, the end of the lying-to-sitting/squa
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ from robot_rise.posture import Posture, read_posture
 from robot_rise.trajectory import Trajectory, read_trajectory
 from robot_rise.seal import seal_problem
 
-__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "MAX_NOISE_REPLAYS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir"]
+__all__ = ["LIBRARY_FORMAT", "LYING_KINDS", "MAX_COMBINED_VARIANTS", "MAX_NOISE_REPLAYS", "Motion", "MotionLibrary", "load_library", "default_library_dir", "robot_library_dir", "library_digest"]
 
 LIBRARY_FORMAT = "robot-rise/motion-library@1"
 LYING_KINDS = ("supine", "prone", "left", "right")
@@ -38,6 +39,24 @@ def robot_library_dir(robot: Robot) -> Path:
     own = robot.directory / robot.library
     shipped = default_library_dir(robot.library)
     return shipped if not own.is_dir() and shipped.is_dir() else own
+
+
+def library_digest(robot: Robot) -> str:
+    """SHA-256 of every file of the library a robot rises with (:func:`robot_library_dir`), '' when it has none.
+
+    Each file by its path relative to the library directory and its bytes, in path order: what
+    a batch task's id and the benchmarks' frozen problems name the library by.
+    """
+    root = robot_library_dir(robot)
+    files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else []
+    if not files:
+        return ""
+    h = hashlib.sha256()
+    for path in files:
+        h.update(os.path.relpath(path, root).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
 
 MAX_COMBINED_VARIANTS = 16  # combined variants a motion's proofs may ask for: each is one more replay of every proof
 MAX_NOISE_REPLAYS = 24  # noisy replays a motion's proofs may ask for (each ~0.1 s of CPU per proof)

@@ -84,7 +84,7 @@ class KeyframedMotion(Generic[K]):
             joins the motion replays besides the ensemble. For a momentum motion whose standing the one-difference-
             at-a-time ensemble misses: joined from random starts, supine_situp_rock_robust passed
             all 19 variants yet stood in only 30-38 of 50 random ones (issue 14).
-        noise_replays: noisy replays (``robot_rise.filter.noise``) every ``rise`` proof that joins
+        noise_replays: noisy replays (``robot_rise.proof.noise``) every ``rise`` proof that joins
             the motion runs, when more than the filter's own (0: the filter's). For a motion whose
             landing is a knife edge: one taken in 40 % of noisy replays escapes 6 of them 4.7 % of
             the time, 12 of them 0.2 % (supine_roll_elbow_knees joined from a side, issue 14).

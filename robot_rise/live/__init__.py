@@ -7,9 +7,16 @@ Pure code on SI samples; it talks to hardware only through interfaces the CLI wi
   the IMU's gravity direction and gyro, in every direction.
 - :mod:`~robot_rise.live.estimate`: the whole lying posture from the joint angles and the IMU's
   gravity direction (roll and pitch from gravity, position by settling the model).
+- :mod:`~robot_rise.live.health`: the servos' health before a try, and the reasons not to move.
+- :mod:`~robot_rise.live.io`: the :class:`RobotIO` interface, the robot as the loop sees it (the
+  CLI wires it to ``drivers``).
+- :mod:`~robot_rise.live.planners`: get-up planners from an estimated posture (ours: ``rise``,
+  proven; the stock OP3's keyframes, for comparison).
 - :mod:`~robot_rise.live.getup`: the get-up loop (estimate, plan and prove, execute, confirm
-  standing, retry, give up limp) over the :class:`RobotIO` interface, the guard, and the push
-  benchmark.
+  standing, retry, give up limp).
+- :mod:`~robot_rise.live.guard`: the guard (limp while falling, get up once fallen).
+
+The push benchmark over the guard is ``robot_rise.bench.pushes`` (above the core).
 """
 
 from robot_rise.live.estimate import (
@@ -38,34 +45,16 @@ from robot_rise.live.fall import (
 from robot_rise.live.getup import (
     AttemptReport,
     Confirmation,
-    ExecutionResult,
     GetUpConfig,
-    GetUpPlanner,
     GetUpReport,
-    GuardEvent,
-    GuardEventKind,
-    GuardState,
-    Health,
-    HealthLimits,
-    health_limits_for_supply,
-    KeyframePlanner,
-    PlannedGetUp,
-    Pusher,
-    PushConfig,
-    PushOutcome,
-    RisePlanner,
-    RobotIO,
-    TruthSource,
     confirm_standing,
     get_up,
-    guard,
-    guard_step,
-    health_problems,
-    push_trials,
-    stop_safely,
-    summarize_pushes,
     watch,
 )
+from robot_rise.live.guard import GuardEvent, GuardEventKind, GuardState, guard, guard_step, stop_safely
+from robot_rise.live.health import Health, HealthLimits, health_limits_for_supply, health_problems
+from robot_rise.live.io import ExecutionResult, RobotIO, TruthSource
+from robot_rise.live.planners import GetUpPlanner, KeyframePlanner, PlannedGetUp, RisePlanner
 
 __all__ = [
     "LYING_KINDS",
@@ -101,9 +90,6 @@ __all__ = [
     "health_limits_for_supply",
     "KeyframePlanner",
     "PlannedGetUp",
-    "Pusher",
-    "PushConfig",
-    "PushOutcome",
     "RisePlanner",
     "RobotIO",
     "TruthSource",
@@ -112,8 +98,6 @@ __all__ = [
     "guard",
     "guard_step",
     "health_problems",
-    "push_trials",
     "stop_safely",
-    "summarize_pushes",
     "watch",
 ]

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from robot_rise.filter import FilterConfig, Proof, prove
+from robot_rise.proof import ProofConfig
+from robot_rise.proof import Proof, prove
 from robot_rise.model import Robot
 from robot_rise.render import CameraSpec, RenderError, check_camera
 from robot_rise.report.media import replay_media
@@ -80,7 +81,7 @@ def write_report(
     camera: CameraSpec = CameraSpec(),
     video: bool = True,
     key_frames: int = 8,
-    filter_config: FilterConfig = FilterConfig(),
+    proof_config: ProofConfig = ProofConfig(),
     progress: Callable[[int, int], None] | None = None,
 ) -> ReportResult:
     """Replay, judge and draw ``trajectory``; write ``out_dir/report.html`` (and the video beside it).
@@ -94,7 +95,7 @@ def write_report(
         camera: camera of the video and key frames.
         video: embed a video (MP4, or a GIF without imageio-ffmpeg); False for key frames only.
         key_frames: number of key frames in the contact sheet.
-        filter_config: the check's tuning (envelope margin, hold time).
+        proof_config: the check's standard (envelope margin, hold time).
         progress: called with (frames done, frames total) while rendering.
 
     Returns:
@@ -111,7 +112,7 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     title_name = name or "trajectory"
-    rec, verdict, proof = prove(robot, trajectory, scene=scene, config=filter_config)
+    rec, verdict, proof = prove(robot, trajectory, scene=scene, config=proof_config)
     limit = proof.envelope_limit
 
     media = replay_media(robot, trajectory, rec, out, scene=scene, camera=camera, video=video, key_frames=key_frames, progress=progress)

@@ -1,14 +1,22 @@
-"""The files of an imported robot's directory: robot.toml (every inference, to correct by hand) and servos.toml (the servo map, or a template of one)."""
+"""The files of an imported robot's directory: robot.toml (every inference, to correct by hand) and servos.toml (the servo map, or a template of one).
+
+Both are written by the one TOML writer (:func:`robot_files.toml_file.write_toml`, ``tomli-w``),
+servos.toml through its format's own writer (:func:`robot_files.servo_map.write_servo_map`).
+Numbers are written to 6 decimals (robot.xml keeps 6 significant digits).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import mujoco
 
-from robot_rise.errors import ConfigError
-from robot_rise.model import ROBOT_FORMAT, SERVOS_FORMAT
+from robot_files.servo_map import SERVO_MAP_COMMENTS, BusSettings, ServoMapFile, ServoRow, write_servo_map
+from robot_files.toml_file import write_toml
+from robot_rise.errors import ConfigError, as_config_error
+from robot_rise.model import ROBOT_FORMAT
 from robot_rise.robot_import.roles import InferredRoles
 
 __all__ = ["template_servo_map", "write_servos", "write_robot_toml", "SOLE_SITE", "TORSO_SITE"]
@@ -17,7 +25,7 @@ SOLE_SITE = "robot_rise_{side}_sole"
 TORSO_SITE = "robot_rise_torso"
 
 
-def template_servo_map(joints: list[str], ranges: Mapping[str, tuple[float, float]], models: dict[str, str]) -> list[dict]:
+def template_servo_map(joints: list[str], ranges: Mapping[str, tuple[float, float]], models: dict[str, str]) -> tuple[ServoRow, ...]:
     default = models.pop("*", None)
     unknown = [j for j in models if j not in joints]
     if unknown:
@@ -25,38 +33,39 @@ def template_servo_map(joints: list[str], ranges: Mapping[str, tuple[float, floa
     lacking = [j for j in joints if j not in models and default is None]
     if lacking:
         raise ConfigError(f"no servo model for {', '.join(lacking)}", hint="--servo-model MODEL for all joints, JOINT=MODEL for one")
-    return [
-        {"id": i + 1, "joint": j, "model": models.get(j, default), "direction": 1, "zero_offset": 0.0, "min": ranges[j][0], "max": ranges[j][1]}
-        for i, j in enumerate(joints)
-    ]
+    with as_config_error():
+        return tuple(ServoRow(i + 1, j, models.get(j, default), 1, 0.0, ranges[j][0], ranges[j][1]) for i, j in enumerate(joints))  # type: ignore[arg-type]
 
 
-def _toml_value(v: object) -> str:
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, bool):
-        return "true" if v else "false"
+def _decimals(v: object) -> object:
+    """``v`` as written: floats to 6 decimals, lists and tables item by item."""
     if isinstance(v, float):
-        return repr(round(v, 6))
+        return round(v, 6)
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return str(v)
+        return [_decimals(x) for x in v]
+    if isinstance(v, Mapping):
+        return {k: _decimals(x) for k, x in v.items()}
+    return v
 
 
-def write_servos(path: Path, robot: str, rows: list[dict], bus: Mapping[str, object]) -> None:
-    lines = [
-        "# Servo map: which servo drives which joint (IDs, models, directions, zero offsets, limits in radians).",
-        "# Written by robot-rise robot import; edit it to your hardware.",
-        "# [bus] supply_voltage_v: the servos' supply (12.0 for a 3S LiPo at 4 V a cell, 14.8 for a 4S at its",
-        "# nominal): every simulation models the servos' torque and speed at it.",
-        f'format = "{SERVOS_FORMAT}"',
-        f"robot = {_toml_value(robot)}",
-        "",
-        "[bus]",
-    ] + [f"{k} = {_toml_value(v)}" for k, v in bus.items()]
-    for r in rows:
-        lines += ["", "[[servo]]"] + [f"{k} = {_toml_value(r[k])}" for k in ("id", "joint", "model", "direction", "zero_offset", "min", "max") if k in r]
-    path.write_text("\n".join(lines) + "\n")
+def write_servos(path: Path, robot: str, rows: Sequence[ServoRow], bus: BusSettings) -> None:
+    """Write the imported robot's ``servos.toml`` (numbers to 6 decimals)."""
+    with as_config_error():
+        bus = dataclasses.replace(bus, return_delay_time_us=_decimals(bus.return_delay_time_us), supply_voltage_v=_decimals(bus.supply_voltage_v),
+                                  extra=tuple((k, _decimals(v)) for k, v in bus.extra))
+        rows = tuple(dataclasses.replace(r, zero_offset=_decimals(r.zero_offset), min=_decimals(r.min), max=_decimals(r.max)) for r in rows)
+        write_servo_map(path, ServoMapFile(robot, bus, rows), comments=_SERVOS_COMMENTS)
+
+
+_SERVOS_COMMENTS = (SERVO_MAP_COMMENTS[0], "Written by robot-rise robot import; edit it to your hardware.", *SERVO_MAP_COMMENTS[1:])
+_ROBOT_COMMENTS = (
+    "Robot description written by robot-rise robot import. Every value here is an inference:",
+    "correct wrong guesses in this file (roles, signs, neutral angles, sites), never in code.",
+    "library: this robot's library (robot-rise library build --robot DIR).",
+    "passive: hinges no servo drives; the model's equality constraints move them (closed linkages).",
+    "[limbs]: for partial-body planning, every joint exactly once.",
+    "[roles]: joint roles (robot_rise/roles.py): q = neutral + sign * role value. role = \"extra\": held.",
+)
 
 
 def write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: InferredRoles, passive: tuple[str, ...] = ()) -> None:
@@ -70,39 +79,18 @@ def write_robot_toml(path: Path, name: str, m: mujoco.MjModel, inferred: Inferre
     limb_joints["torso"] += [j.joint for j in roles.joints if j.joint not in listed]
     head = [j.joint for j in roles.joints if j.role.startswith("head.")]
     foot = [j.joint for j in roles.joints if j.role.endswith(("ankle_pitch", "ankle_roll"))]
-    lines = [
-        "# Robot description written by robot-rise robot import. Every value here is an inference:",
-        "# correct wrong guesses in this file (roles, signs, neutral angles, sites), never in code.",
-        f'format = "{ROBOT_FORMAT}"',
-        f"name = {_toml_value(name)}",
-        'model = "robot.xml"',
-        'servos = "servos.toml"',
-        'library = "motions"  # this robot\'s library: robot-rise library build --robot DIR',
-    ]
+    data: dict[str, object] = {"format": ROBOT_FORMAT, "name": name, "model": "robot.xml", "servos": "servos.toml", "library": "motions"}
     if passive:
-        lines += ["# Hinges no servo drives: the model's equality constraints move them (closed linkages).", f"passive = {_toml_value(list(passive))}"]
-    lines += [
-        "",
-        "[metric_groups]",
-        f"head = {_toml_value(head)}",
-        f"foot = {_toml_value(foot)}",
-        "",
-        "# Limbs for partial-body planning: every joint exactly once.",
-        "[limbs]",
-    ]
-    lines += [f"{k} = {_toml_value(v)}" for k, v in limb_joints.items() if v]
-    lines += [
-        "",
-        "[sites]",
-        f"soles = {_toml_value([SOLE_SITE.format(side=s) for s in ('left', 'right')])}",
-        f"torso = {_toml_value(TORSO_SITE)}",
-        "",
-        "# Joint roles (robot_rise/roles.py): q = neutral + sign * role value. role = \"extra\": held.",
-        "[roles]",
-    ]
+        data["passive"] = list(passive)
+    data["metric_groups"] = {"head": head, "foot": foot}
+    data["limbs"] = {k: v for k, v in limb_joints.items() if v}
+    data["sites"] = {"soles": [SOLE_SITE.format(side=s) for s in ("left", "right")], "torso": TORSO_SITE}
+    roles_table = {}
     for j in range(m.njnt):
         if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or m.joint(j).name in passive:
             continue
         r = by_joint[m.joint(j).name]
-        lines.append(f"{_toml_value(r.joint)} = {{ role = {_toml_value(r.role)}, sign = {r.sign}, neutral = {_toml_value(float(r.neutral_rad))} }}")
-    path.write_text("\n".join(lines) + "\n")
+        roles_table[r.joint] = {"role": r.role, "sign": int(r.sign), "neutral": float(r.neutral_rad)}
+    data["roles"] = roles_table
+    with as_config_error():
+        write_toml(path, _decimals(data), comments=_ROBOT_COMMENTS)  # type: ignore[arg-type]

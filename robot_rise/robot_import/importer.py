@@ -16,11 +16,10 @@ leaves nothing behind; a dry run does all of it in a scratch directory and write
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import os
 import shutil
 import tempfile
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,8 +27,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robot_rise.errors import ConfigError, mujoco_reason
-from robot_rise.model import SERVOS_FORMAT, SUPPLY_VOLTAGE_V, load_robot, supply_voltage
+from robot_files.servo_map import BusSettings, read_servo_map
+from robot_rise.errors import ConfigError, as_config_error, mujoco_reason
+from robot_rise.model import load_robot, supply_voltage
 from robot_rise.linkage import close_loops, linkage_of
 from robot_rise.robot_import.constraints import passive_joints
 from robot_rise.robot_import.directory import SOLE_SITE, TORSO_SITE, template_servo_map, write_robot_toml, write_servos
@@ -46,7 +46,6 @@ __all__ = ["ImportResult", "import_robot", "SOLE_SITE", "TORSO_SITE", "STAND_CHE
 STAND_CHECK_S = 3.0  # a found standing posture must be held this long by the servo model
 STAND_SETTLE_S = 1.0  # of which the first second settles it (a weak robot sinks onto its stops)
 ASSET_DIR = "assets"
-MIN_SERVO_ID, MAX_SERVO_ID = 0, 252  # Dynamixel IDs (253 is reserved, 254 broadcasts)
 
 
 @dataclass(frozen=True)
@@ -77,47 +76,6 @@ class ImportResult:
     missing_roles: tuple[str, ...] = ()
     stand: str = ""
     written: bool = True
-
-
-def _read_servo_map(path: Path) -> tuple[dict, list[dict], str]:
-    """The user's ``[bus]`` table (kept as given: baud rate, supply voltage), servo rows, and the robot's name."""
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise ConfigError(f"{path}: cannot read servo map: {e}") from e
-    if data.get("format") != SERVOS_FORMAT:
-        raise ConfigError(f"{path}: format is {data.get('format')!r}, expected {SERVOS_FORMAT!r}")
-    rows = data.get("servo", [])
-    if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
-        raise ConfigError(f"{path}: no [[servo]] rows")
-    bus = data.get("bus", {})
-    if not isinstance(bus, dict):
-        raise ConfigError(f"{path}: [bus] must be a table")
-    ids: set[int] = set()
-    joints: set[str] = set()
-    for r in rows:
-        where = f"{path}: servo {r.get('id')!r} ({r.get('joint')!r})"
-        sid, joint = r.get("id"), r.get("joint")
-        if isinstance(sid, bool) or not isinstance(sid, int) or not MIN_SERVO_ID <= sid <= MAX_SERVO_ID:
-            raise ConfigError(f"{where}: id must be a whole number in {MIN_SERVO_ID}..{MAX_SERVO_ID} (Dynamixel IDs), not {sid!r}")
-        if not isinstance(joint, str) or not joint:
-            raise ConfigError(f"{where}: joint must name a joint of the model")
-        if sid in ids or joint in joints:
-            raise ConfigError(f"{where}: {'id ' + str(sid) if sid in ids else 'joint ' + joint} appears twice")
-        ids.add(sid)
-        joints.add(joint)
-        if not isinstance(r.get("model"), str):
-            raise ConfigError(f"{where}: model must name a servo model (e.g. \"MX-28\")")
-        if r.get("direction", 1) not in (1, -1):
-            raise ConfigError(f"{where}: direction must be 1 or -1, not {r.get('direction')!r}")
-        for key in ("min", "max", "zero_offset"):
-            value = r.get(key, 0.0)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError(f"{where}: {key} must be a number of radians, not {value!r}")
-        if "min" in r and "max" in r and not r["min"] < r["max"]:
-            raise ConfigError(f"{where}: min {r['min']} must be below max {r['max']}")
-    robot = data.get("robot", "")
-    return bus, rows, robot if isinstance(robot, str) else ""
 
 
 _GENERIC_NAMES = ("robot", "model", "mujoco", "urdf", "main")  # file or model names that do not name the robot
@@ -294,26 +252,24 @@ def import_robot(
         raise ConfigError(f"{src}: only hinge joints are supported besides the floating base; not: {', '.join(others)}")
     if not hinges:
         raise ConfigError(f"{src}: no hinge joints")
-    bus, servo_rows, map_name = _read_servo_map(Path(servos)) if servos is not None else ({}, None, "")
+    with as_config_error():  # the one servos.toml reader: every row with its limits
+        user_map = read_servo_map(Path(servos)) if servos is not None else None
+    servo_rows = user_map.servos if user_map is not None else None
     # the name: given, else the servo map's (the user's), else the model's own, else the file's
     stem = src.name.split(".")[0]
+    map_name = user_map.robot if user_map is not None else ""
     robot_name = name or map_name or (stem if stem.lower() not in _GENERIC_NAMES else _plain_name(spec.modelname) or stem)
-    bus = {"protocol": 2.0, "baud_rate": 1000000, "return_delay_time_us": 0, "supply_voltage_v": SUPPLY_VOLTAGE_V} | bus
-    if supply_voltage_v is not None:
-        bus["supply_voltage_v"] = supply_voltage_v
-    odd = [k for k, v in bus.items() if not isinstance(v, (int, float, str)) or not str(k).replace("_", "").isalnum()]
-    if odd:
-        raise ConfigError(f"{servos}: [bus] keys must be plain settings (number or text); not: {', '.join(map(str, odd))}")
-    # checked before writing: the standing search swallows load_robot's errors
-    supply_voltage(bus["supply_voltage_v"], "--supply-voltage" if supply_voltage_v is not None else f"{servos}: [bus] supply_voltage_v")
+    bus = user_map.bus if user_map is not None else BusSettings()  # the user's [bus] kept as given
+    if supply_voltage_v is not None:  # checked before writing: the standing search swallows load_robot's errors
+        bus = dataclasses.replace(bus, supply_voltage_v=supply_voltage(supply_voltage_v, "--supply-voltage"))
     if servo_rows is not None:
         names = {m.joint(j).name for j in hinges}
-        unknown = [str(r.get("joint")) for r in servo_rows if str(r.get("joint")) not in names]
+        unknown = [r.joint for r in servo_rows if r.joint not in names]
         if unknown:
             raise ConfigError(f"{servos}: names joints the model lacks: {', '.join(unknown)}")
     root_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, base.name)
     chains = {j for chain, _ in jointed_limbs(m, root_body)[0] for b in chain for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])}
-    servo_joints = [str(r.get("joint")) for r in servo_rows] if servo_rows is not None else None
+    servo_joints = [r.joint for r in servo_rows] if servo_rows is not None else None
     passive, passive_notes = passive_joints(m, servo_joints, actuated, chains, str(src))
     notes += passive_notes
     tags = urdf_limit_tags(source.urdf_text) if source.urdf_text else {}
@@ -386,7 +342,7 @@ def import_robot(
         servo_rows = template_servo_map(joint_names, ranges, dict(servo_models or {}))
         notes.append(f"servo map: template (IDs 1-{len(joint_names)} in model order, direction 1, limits = joint ranges): edit servos.toml to your hardware")
     for r in servo_rows:
-        servo_datasheet(str(r.get("model")))  # one line naming an unknown model
+        servo_datasheet(r.model)  # one line naming an unknown model
 
     scratch_parent = Path(tempfile.gettempdir()) if dry_run else out.parent
     scratch_parent.mkdir(parents=True, exist_ok=True)

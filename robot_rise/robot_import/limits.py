@@ -11,13 +11,15 @@ every range is cut to ``POSITION_MODE_HALF_TURN_RAD``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from xml.etree import ElementTree
 
 import mujoco
 
+from robot_files.servo_map import ServoRow
 from robot_rise.errors import ConfigError
 
 __all__ = [
@@ -41,7 +43,7 @@ class JointRanges:
     """Each hinge's range [rad] by joint name, the servo rows with their limits reconciled, notes."""
 
     ranges: dict[str, tuple[float, float]]
-    servo_rows: list[dict] | None
+    servo_rows: tuple[ServoRow, ...] | None
     notes: tuple[str, ...]
 
 
@@ -78,7 +80,7 @@ def _placeholder(lo: float, hi: float, tag: Mapping[str, float]) -> str:
 def joint_ranges(
     m: mujoco.MjModel,
     ctrlranges: Mapping[str, tuple[float, float]],
-    servo_rows: list[dict] | None,
+    servo_rows: Sequence[ServoRow] | None,
     limit_tags: Mapping[str, Mapping[str, float]],
     source: str,
     servo_map: str,
@@ -91,8 +93,7 @@ def joint_ranges(
         ConfigError: a joint has no range anywhere, or a servo map limit lies outside the model's.
     """
     notes: list[str] = []
-    rows = [dict(r) for r in servo_rows] if servo_rows is not None else None
-    servo = {str(r.get("joint")): r for r in rows or () if "min" in r and "max" in r}
+    servo = {r.joint: r for r in servo_rows or ()}
     out: dict[str, tuple[float, float]] = {}
     missing, placeholders, rounded = [], [], []
     for j in range(m.njnt):
@@ -112,7 +113,7 @@ def joint_ranges(
         if model_range and not (why and name in servo):
             out[name] = model_range
         elif name in servo:
-            out[name] = (float(servo[name]["min"]), float(servo[name]["max"]))
+            out[name] = (servo[name].min, servo[name].max)
             if not model_range:
                 notes.append(f"{name}: no range in the model; range from the servo map [{out[name][0]:.4f}, {out[name][1]:.4f}]")
         elif name in ctrlranges:
@@ -134,17 +135,18 @@ def joint_ranges(
     out = {k: (round(lo, 5), round(hi, 5)) for k, (lo, hi) in out.items()}
     for name, row in servo.items():
         lo, hi = out[name]
-        smin, smax = float(row["min"]), float(row["max"])
+        smin, smax = row.min, row.max
         if smin < lo - ROUNDING_TOLERANCE_RAD or smax > hi + ROUNDING_TOLERANCE_RAD:
             raise ConfigError(
-                f"{servo_map}: servo {row.get('id')} ({name}) limits [{smin}, {smax}] lie outside the model range [{lo:.4f}, {hi:.4f}]"
+                f"{servo_map}: servo {row.id} ({name}) limits [{smin}, {smax}] lie outside the model range [{lo:.4f}, {hi:.4f}]"
                 f" by more than a rounding ({ROUNDING_TOLERANCE_RAD * 1e3:g} mrad)"
             )
         if smin < lo - 1e-6 or smax > hi + 1e-6:
             rounded.append(f"{name} [{smin:g}, {smax:g}] -> [{max(smin, lo):.5f}, {min(smax, hi):.5f}]")
-        row["min"], row["max"] = max(smin, lo), min(smax, hi)
-        if not row["min"] < row["max"]:
-            raise ConfigError(f"{servo_map}: servo {row.get('id')} ({name}) limits [{smin}, {smax}] are empty")
+        if not max(smin, lo) < min(smax, hi):
+            raise ConfigError(f"{servo_map}: servo {row.id} ({name}) limits [{smin}, {smax}] are empty")
+        servo[name] = dataclasses.replace(row, min=max(smin, lo), max=min(smax, hi))
     if rounded:
         notes.append(f"servo map limits within {ROUNDING_TOLERANCE_RAD * 1e3:g} mrad outside the model's range taken as the model's: {', '.join(rounded)}")
+    rows = tuple(servo[r.joint] for r in servo_rows) if servo_rows is not None else None
     return JointRanges(out, rows, tuple(notes))

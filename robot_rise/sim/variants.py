@@ -3,7 +3,7 @@
 A proof on one model is a proof on that model. A variant changes the composed MuJoCo model
 (link masses, centres of mass, inertias, friction, servo supply, position gain, armature, gear
 friction, collision shapes) or what reaches it (command latency, commands quantised to servo
-ticks, the start posture): the ensemble proof (``robot_rise.filter.ensemble``) replays a
+ticks, the start posture): the ensemble proof (``robot_rise.proof.ensemble``) replays a
 trajectory on each. Ranges and their sources are in ``VARIANT_RANGES``; every random draw comes
 from the variant's own seed, so a variant is the same model on every machine.
 

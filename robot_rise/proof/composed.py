@@ -38,11 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.ensemble import EnsembleReplayer
-from robot_rise.filter.noise import noise_check
-from robot_rise.filter.prediction import PREDICTED_KEY, PredictedPositions, predicted_positions
-from robot_rise.filter.proof import Proof, VariantVerdict, prove
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.ensemble import EnsembleReplayer
+from robot_rise.proof.noise import noise_check
+from robot_rise.proof.prediction import PREDICTED_KEY, PredictedPositions, predicted_positions
+from robot_rise.proof.verdict import Proof, VariantVerdict, prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
@@ -141,7 +141,7 @@ class StartProof:
         return self.all_stand and self.spread_proven
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON values (``robot_rise.filter.start_cache`` writes them)."""
+        """Plain JSON values (``robot_rise.proof.start_cache`` writes them)."""
         return {
             "motion": self.motion,
             "verdicts": [v.to_dict() for v in self.verdicts],
@@ -229,7 +229,7 @@ def _rest_at(rec: Recording, t_s: float) -> RestPose:
     return RestPose(rec.root_pose[k, 3:].copy(), float(rec.root_pose[k, 2]), rec.q[k].copy())
 
 
-def prove_start(name: str, motion_trajectory: Trajectory, replayer: EnsembleReplayer, config: FilterConfig,
+def prove_start(name: str, motion_trajectory: Trajectory, replayer: EnsembleReplayer, config: ProofConfig,
                 nominal: Recording) -> StartProof:
     """:class:`StartProof` of a library motion: settle + motion replayed on every variant.
 
@@ -253,7 +253,7 @@ def prove_start(name: str, motion_trajectory: Trajectory, replayer: EnsembleRepl
                       band.tolerance_rad, float(band.tilt_tolerance_rad or 0.0), spread_proven)
 
 
-def _arrival(label: str, rec: Recording, rest: RestPose, config: FilterConfig) -> Arrival:
+def _arrival(label: str, rec: Recording, rest: RestPose, config: ProofConfig) -> Arrival:
     peak = float(np.max(rec.envelope_ratio, initial=0.0))
     problems = []
     if float(np.max(np.abs(rec.qd[-1]), initial=0.0)) > ARRIVAL_REST_JOINT_SPEED_RAD_S or float(np.linalg.norm(rec.root_vel[-1, :3])) > ARRIVAL_REST_ROOT_SPEED_M_S:
@@ -283,7 +283,7 @@ def prove_composed(
     start_proof: StartProof,
     start: Posture,
     replayer: EnsembleReplayer,
-    config: FilterConfig,
+    config: ProofConfig,
 ) -> ComposedProof | None:
     """The composed ensemble proof of ``trajectory`` (see the module docstring), or None where it
     does not apply (the caller then replays the whole ensemble).

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from robot_rise.errors import FormatError
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.fall import describe_fall
-from robot_rise.filter.timeline import segment_at
-from robot_rise.filter.violations import Violation, find_violations, saturation_rad
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.fall import describe_fall
+from robot_rise.proof.timeline import segment_at
+from robot_rise.proof.violations import Violation, find_violations, saturation_rad
 from robot_rise.model import Robot
 from robot_rise.paths import scene_path
 from robot_rise.posture import Posture
@@ -111,7 +111,7 @@ class Proof:
         max_self_penetration_m: deepest self contact [m].
         stood_from_s: start of the final standing stretch [s]; None if it never stood.
         diagnosis: why it did not stand (:func:`describe_fall`); '' when standing.
-        ensemble: each model variant's verdict (``robot_rise.filter.ensemble``), empty when the
+        ensemble: each model variant's verdict (``robot_rise.proof.ensemble``), empty when the
             ensemble was not replayed; ``proven`` then also means every variant stands.
     """
 
@@ -363,7 +363,7 @@ def prove(
     trajectory: Trajectory,
     *,
     scene: str | os.PathLike[str] | None = "flat",
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
     player: Player | None = None,
     start: Posture | None = None,
 ) -> tuple[Recording, StandVerdict, Proof]:
@@ -394,7 +394,7 @@ def prove_with_violations(
     trajectory: Trajectory,
     *,
     scene: str | os.PathLike[str] | None,
-    config: FilterConfig,
+    config: ProofConfig,
     player: Player,
     start: Posture | None,
     saturation_rad: float,

@@ -3,7 +3,7 @@
 A trajectory file rounds its targets to 5e-7 rad and a servo is commanded in ticks, so a verdict
 that changes with 1e-6 rad of noise on the targets is a coin toss, not a proof (issue 14: 3 of 300
 rise outputs flipped, a landing's torque peak jumping from 0.83 to 1.00 of the envelope, in 4-6 of
-10 noisy replays each). So the nominal model also replays ``FilterConfig.noise_replays`` copies of
+10 noisy replays each). So the nominal model also replays ``ProofConfig.noise_replays`` copies of
 the targets with seeded uniform noise of +-``noise_rad``, each up to ``noise_hold_s`` after the
 trajectory's end, and each must:
 
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.proof import Proof
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.verdict import Proof
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
 from robot_rise.trajectory import Trajectory
@@ -34,7 +34,7 @@ __all__ = ["NOISE_CHECK_KEY", "NoiseReplay", "NoiseCheck", "noisy_trajectory", "
 
 NOISE_CHECK_KEY = "noise_check"  # the trajectory report's entry: the noisy replays its proof passed (or not)
 # "Ends where the noiseless replay does" (ours): the composed proof's arrival tolerances
-# (robot_rise.filter.composed) halved; seen between the noisy and noiseless replays of 60 rise
+# (robot_rise.proof.composed) halved; seen between the noisy and noiseless replays of 60 rise
 # outputs (2026-12-03): < 0.01 deg of tilt, < 0.02 deg per joint (the root up to 9 mm elsewhere
 # on the floor, which standing does not care about).
 NOISE_SAME_TILT_RAD = math.radians(0.5)
@@ -100,7 +100,7 @@ def noisy_trajectory(trajectory: Trajectory, rng: np.random.Generator, noise_rad
     return dataclasses.replace(trajectory, q=trajectory.q + rng.uniform(-noise_rad, noise_rad, trajectory.q.shape))
 
 
-def _replay_against(rec: Recording, nominal: Recording, config: FilterConfig) -> NoiseReplay:
+def _replay_against(rec: Recording, nominal: Recording, config: ProofConfig) -> NoiseReplay:
     limit = 1.0 - config.envelope_margin
     k = len(rec.t) - 1
     kn = min(k, len(nominal.t) - 1)  # the same sample of the noiseless replay (same rate, same start)
@@ -129,7 +129,7 @@ def noise_check(
     player: Player,
     *,
     start: Posture | None = None,
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
 ) -> tuple[NoiseCheck, list[Recording]]:
     """Replay ``config.noise_replays`` noisy copies of ``trajectory`` on ``player`` (the nominal
     model) from ``start`` (default: its own) and hold each against ``nominal``, the noiseless

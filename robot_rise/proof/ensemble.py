@@ -22,9 +22,9 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 import numpy as np
 
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.noise import NOISE_CHECK_KEY, noise_check, with_noise
-from robot_rise.filter.proof import Proof, VariantVerdict, prove
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.noise import NOISE_CHECK_KEY, noise_check, with_noise
+from robot_rise.proof.verdict import Proof, VariantVerdict, prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player, Recording
@@ -57,7 +57,7 @@ class EnsembleResult:
         return [f"variant '{v.label}': {v.reason}" for v in self.verdicts if not v.standing]
 
 
-def _verdict(variant: ModelVariant, rec: Recording, config: FilterConfig) -> VariantVerdict:
+def _verdict(variant: ModelVariant, rec: Recording, config: ProofConfig) -> VariantVerdict:
     v = judge(rec)
     # grown shapes overlap by twice the growth where the nominal ones touch: that much is the same touch
     tolerance = config.self_penetration_tolerance_m + 2.0 * max(0.0, variant.geom_grow_m)
@@ -113,7 +113,7 @@ class EnsembleReplayer:
         return self.variants + extra, self.players + self._combined[:combined]
 
     def replay(self, trajectory: Trajectory, *, start: Posture | None = None,
-               config: FilterConfig = FilterConfig(), only: Sequence[int] | None = None) -> tuple[EnsembleResult, list[Recording]]:
+               config: ProofConfig = ProofConfig(), only: Sequence[int] | None = None) -> tuple[EnsembleResult, list[Recording]]:
         """Replay ``trajectory`` (from ``start``, default its own) on every variant (or on the
         variants numbered ``only``, in that order); judge each."""
         start = start or trajectory.start
@@ -160,7 +160,7 @@ def check(
     trajectory: Trajectory,
     *,
     scene: str | os.PathLike[str] | None = None,
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
 ) -> Proof:
     """Replay ``trajectory`` from its start and return its proof, on the nominal model (with its
     ``config.noise_replays`` noisy replays: ``noise.py``) and (with ``config.ensemble``) on every
@@ -192,7 +192,7 @@ def replay_random_variants(
     seed: int,
     *,
     scene: str | os.PathLike[str] | None = "flat",
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
 ) -> EnsembleResult:
     """Replay on ``n`` random variants drawn from the ensemble's ranges (``random_variants``): the
     share that stands is the trajectory's margin, measured on models it was not proven on."""

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from robot_rise.filter.timeline import ON_FEET_MIN_S, feet_stretches, segment_at
-from robot_rise.filter.violations import Violation
+from robot_rise.proof.timeline import ON_FEET_MIN_S, feet_stretches, segment_at
+from robot_rise.proof.violations import Violation
 from robot_rise.sampling import classify_lying
 from robot_rise.sim.player import Recording
 from robot_rise.sim.standing import world_contact

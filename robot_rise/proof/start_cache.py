@@ -1,6 +1,6 @@
 """Start proofs kept on disk: a library motion proven from rest once per robot, scene, library and code.
 
-A :class:`robot_rise.filter.composed.StartProof` costs 3-5 s of CPU per motion (every variant
+A :class:`robot_rise.proof.composed.StartProof` costs 3-5 s of CPU per motion (every variant
 replays the motion, plus the noisy and spread replays), so a process that composes proofs (the
 guard, ``rise --composed``, batch workers) started 45 s late. Each is kept in one JSON file
 (``format`` ``robot-rise/start-proof@1``) named by a SHA-256 key over everything it rests on: the
@@ -29,9 +29,9 @@ import mujoco
 import numpy as np
 
 from robot_rise.fileio import write_text_atomic
-from robot_rise.filter.composed import StartProof
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.proof import scene_digest
+from robot_rise.proof.composed import StartProof
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.verdict import scene_digest
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.variants import ENSEMBLE
@@ -67,7 +67,7 @@ def _source_digest() -> str:
 
 
 def start_proof_key(robot: Robot, scene: str | os.PathLike[str] | None, motion: str, motion_trajectory: Trajectory,
-                    start: Posture, config: FilterConfig) -> str:
+                    start: Posture, config: ProofConfig) -> str:
     """The SHA-256 key of a start proof (see the module docstring) of ``motion`` played from ``start``."""
     h = hashlib.sha256()
     for part in (START_PROOF_FORMAT, robot.digest(), scene_digest(scene), motion, repr(dataclasses.astuple(config)),

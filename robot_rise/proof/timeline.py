@@ -8,7 +8,7 @@ rows of plan, the plan's rows before an overlapped join's motion; ``motion`` and
 
 from __future__ import annotations
 
-from robot_rise.filter.violations import true_runs
+from robot_rise.proof.violations import true_runs
 from robot_rise.sim.player import Recording
 from robot_rise.sim.standing import supported_on_feet
 from robot_rise.trajectory import Trajectory

@@ -180,7 +180,7 @@ def predicted_positions(recording: Recording, *, ensemble: Sequence[Recording] =
         recording: the nominal replay of the trajectory as it will be streamed (the proof's).
         ensemble: replays of the same trajectory on the model variants (same joints); their
             spread around ``recording`` widens each joint's tolerance. A replay of a first part
-            of the trajectory only (``robot_rise.filter.composed``) counts over that part.
+            of the trajectory only (``robot_rise.proof.composed``) counts over that part.
         rate_hz: rows per second of the table [Hz].
         floor_rad: smallest tolerance [rad].
         tilt_floor_rad: smallest tilt tolerance [rad].

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import os
 
-from robot_rise.filter.config import FilterConfig
-from robot_rise.filter.proof import prove
+from robot_rise.proof.config import ProofConfig
+from robot_rise.proof.verdict import prove
 from robot_rise.model import Robot
 from robot_rise.posture import Posture
 from robot_rise.sim.player import Player
@@ -25,7 +25,7 @@ def stands_under(
     variant: ModelVariant,
     *,
     scene: str | os.PathLike[str] | None = "flat",
-    config: FilterConfig = FilterConfig(),
+    config: ProofConfig = ProofConfig(),
     start: Posture | None = None,
 ) -> bool:
     """Replay ``trajectory`` unchanged on the model ``variant``; True if the robot still stands

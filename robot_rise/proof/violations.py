@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_rise.filter.config import FilterConfig
+from robot_rise.proof.config import ProofConfig
 from robot_rise.model import Robot
 from robot_rise.sim.player import Recording
 from robot_rise.sim.standing import supported_on_feet
@@ -54,7 +54,7 @@ def true_runs(mask: np.ndarray, t: np.ndarray, min_len_s: float = 0.0) -> list[t
     return out
 
 
-def find_violations(rec: Recording, config: FilterConfig, *, saturation_rad: float) -> list[Violation]:
+def find_violations(rec: Recording, config: ProofConfig, *, saturation_rad: float) -> list[Violation]:
     """Violations in a recording (times on the recording's clock = the trajectory's)."""
     out: list[Violation] = []
     t = rec.t
