@@ -41,6 +41,7 @@ from drivers.safety import (
     StopPolicy,
     approach_path,
     check_start,
+    band_deviation,
     evaluate_expected,
     evaluate_feedback,
     evaluate_tilt,
@@ -186,8 +187,8 @@ class ExecutionReport:
         faults: faults that caused the stop (empty if completed).
         stats: :class:`CycleStats`.
         max_tracking_error_rad: largest |present - previous command| seen [rad].
-        max_expected_error_rad: largest |present - expected| seen [rad] (None: not watched).
-        max_expected_ratio: largest |present - expected| / tolerance seen (None: not watched;
+        max_expected_error_rad: largest distance of a present position outside the band from its expected position to its goals (``band_deviation``) [rad] (None: not watched).
+        max_expected_ratio: that distance / the tolerance, largest seen (None: not watched;
             above 1 only for fewer cycles in a row than the debounce, or at a fault).
         max_tilt_error_rad: largest |torso tilt - expected tilt| the IMU showed [rad] (None: not
             watched).
@@ -295,8 +296,18 @@ class Executor:
                     f"(tolerance {self.limits.start_tolerance_rad} rad)",
                     hint=f"request a slow approach (--approach {max(2.0, math.ceil(start.min_approach_s * 2)):.0f})"
                          " or pose the robot at the trajectory's start")
-            return tm, qm
-        ta, qa = approach_path(q_present, qm[0], self.config.approach_s, self.limits)
+        # from where the joints are, clamped into the limits (a joint resting on its stop reads a hair
+        # past it, within the tolerance accepted above): the approach itself never needs a clamp
+        inside = np.clip(np.asarray(q_present, dtype=float), self.limits.lower_rad, self.limits.upper_rad)
+        if self.config.approach_s is None:
+            if float(np.max(np.abs(qm[0] - inside), initial=0.0)) <= self.limits.max_step_rad(1.0 / self.config.rate_hz):
+                return tm, qm
+            # within the start tolerance but more than one cycle's step away (a body settled a little
+            # off the trajectory's start): the shortest approach the approach velocity allows, so the
+            # first command is not a step the safety layer has to clamp
+            ta, qa = approach_path(inside, qm[0], 0.0, self.limits)
+            return np.concatenate([ta, ta[-1] + 0.01 + tm]), np.vstack([qa, qm])
+        ta, qa = approach_path(inside, qm[0], self.config.approach_s, self.limits)
         return np.concatenate([ta, ta[-1] + 0.01 + tm]), np.vstack([qa, qm])
 
     def run(self, joint_names: Sequence[str], t: FloatArray, q: FloatArray) -> ExecutionReport:
@@ -394,11 +405,11 @@ class Executor:
                     voltage_v=fb.voltage_v, consecutive_failures=group.consecutive_failures)
                 if watched is not None:
                     q_expected = interpolate(watched.t_s, watched.q_rad, tau)
-                    err = np.abs(fb.position_rad - q_expected)
+                    err = band_deviation(fb.position_rad, q_expected, q_tracked, q_cmd)
                     if tolerance is None:  # a start within the start tolerance is accepted as it is
                         tolerance = watched.tolerance_rad + np.where(fb.valid, err, 0.0)
                     beyond, off = evaluate_expected(fb.position_rad, q_expected, tolerance, fb.valid, beyond,
-                                                    watched.debounce_cycles(dt))
+                                                    watched.debounce_cycles(dt), (q_tracked, q_cmd))
                     found = [*found, *off]
                     if fb.valid.any():
                         max_expected = max(max_expected, float(np.max(err[fb.valid])))

@@ -36,6 +36,7 @@ __all__ = [
     "EXPECTED_DEBOUNCE_S",
     "ExpectedPositions",
     "evaluate_expected",
+    "band_deviation",
     "TILT_DEBOUNCE_S",
     "ExpectedTilt",
     "evaluate_tilt",
@@ -176,8 +177,12 @@ def voltage_limits_for_supply(supply_v: float) -> dict[str, float]:
 class ExpectedPositions:
     """Where the joints should be while a trajectory runs (e.g. a proof's replay), in map order.
 
-    Watched instead of the absolute tracking limit: a joint farther than its tolerance from its
-    expected position for ``debounce_s`` is a TRACKING fault (:func:`evaluate_expected`).
+    Watched instead of the absolute tracking limit: a joint farther than its tolerance from the
+    band between its expected position and its goals for ``debounce_s`` is a TRACKING fault
+    (:func:`evaluate_expected`). The band, not the expected position alone: a servo that follows
+    its goals more closely than the proof's loaded lag predicts (an unloaded servo, the robot on a
+    stand; a bus whose servos are stiffer than the model) is not a fault; one that falls behind
+    the prediction, or is pushed off past its goals, is.
 
     Attributes:
         t_s: trajectory time [s], shape (K,), strictly increasing (0 = the trajectory's first row).
@@ -214,14 +219,30 @@ class ExpectedPositions:
         return max(1, int(math.ceil(self.debounce_s / dt_s - 1e-9)))
 
 
+def band_deviation(q_present_rad: FloatArray, q_expected_rad: FloatArray, *q_goals_rad: FloatArray) -> FloatArray:
+    """How far each present position lies outside the band from its expected position to its goals [rad]. Pure.
+
+    The band spans the expected position and every goal given (the last goal sent and the one
+    just sent: the servo moves from where the prediction has it towards them); inside it is 0.
+    Without goals it is |present - expected|.
+    """
+    present, expected = np.asarray(q_present_rad, dtype=float), np.asarray(q_expected_rad, dtype=float)
+    lo, hi = expected.copy(), expected.copy()
+    for goal in q_goals_rad:
+        lo, hi = np.minimum(lo, goal), np.maximum(hi, goal)
+    return np.maximum(np.maximum(lo - present, present - hi), 0.0)
+
+
 def evaluate_expected(q_present_rad: FloatArray, q_expected_rad: FloatArray, tolerance_rad: FloatArray,
                       valid: NDArray[np.bool_], beyond_cycles: NDArray[np.int64],
-                      debounce_cycles: int) -> tuple[NDArray[np.int64], list[Fault]]:
-    """Judge one cycle's present positions against the expected ones. Pure.
+                      debounce_cycles: int, q_goals_rad: tuple[FloatArray, ...] = ()) -> tuple[NDArray[np.int64], list[Fault]]:
+    """Judge one cycle's present positions against the band from the expected ones to the goals. Pure.
 
     Args:
         q_present_rad: present positions [rad] (NaN where not valid), shape (n,).
         q_expected_rad: expected positions [rad], shape (n,).
+        q_goals_rad: the goals the servos were sent (last cycle's and this one's), each shape (n,):
+            the band's other edge (:func:`band_deviation`); none: the expected positions alone.
         tolerance_rad: per joint [rad], shape (n,).
         valid: which entries were read this cycle, shape (n,).
         beyond_cycles: consecutive cycles each joint has been beyond its tolerance so far, shape (n,).
@@ -230,7 +251,7 @@ def evaluate_expected(q_present_rad: FloatArray, q_expected_rad: FloatArray, tol
     Returns:
         (the updated count per joint: +1 beyond, 0 within, unchanged where not read; the faults).
     """
-    err = np.abs(np.asarray(q_present_rad) - np.asarray(q_expected_rad))
+    err = band_deviation(q_present_rad, q_expected_rad, *q_goals_rad)
     v = np.asarray(valid, dtype=bool)
     beyond = v & (err > tolerance_rad)
     count = np.where(beyond, beyond_cycles + 1, np.where(v, 0, beyond_cycles))

@@ -282,9 +282,9 @@ def test_that_execute_on_the_twin_watches_the_proofs_predicted_positions(
         predicted_arm: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["execute", str(predicted_arm), "--mock", "--twin", "--yes"]) == 0
     out, err = capsys.readouterr()
-    assert re.search(r"tracking watched against the proof's predicted positions \(tolerance [\d.]+\.\.[\d.]+ rad\)", out)
+    assert re.search(r"tracking watched against the band from the proof's predicted positions to the goals \(tolerance [\d.]+\.\.[\d.]+ rad\)", out)
     assert "safety-clamped cycles 0" in out and "completed" in out and "warning" not in err
-    match = re.search(r"largest distance from the proof's predicted positions [\d.]+ rad \(([\d.]+) of its tolerance\)", out)
+    match = re.search(r"largest distance outside the band from the proof's predicted positions to the goals [\d.]+ rad \(([\d.]+) of its tolerance\)", out)
     assert match and float(match.group(1)) < 1.0, out
 
 
@@ -293,4 +293,4 @@ def test_that_execute_at_another_speed_watches_the_command_not_the_prediction(
     assert main(["execute", str(predicted_arm), "--mock", "--yes", "--speed", "0.5"]) == 0
     out = capsys.readouterr().out
     assert "note: tracking watched against the command (0.35 rad), not the proof's predicted positions" in out
-    assert "largest distance from the proof's predicted positions" not in out
+    assert "largest distance outside the band" not in out

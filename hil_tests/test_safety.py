@@ -232,3 +232,27 @@ def test_that_a_malformed_expected_tilt_is_refused() -> None:
         ExpectedTilt(np.array([1.0, 0.0]), np.array([0.1, 0.2]), 0.2)
     with pytest.raises(SafetyError, match="tolerance must be positive"):
         ExpectedTilt(np.array([0.0, 1.0]), np.array([0.1, 0.2]), 0.0)
+
+
+def test_that_a_servo_ahead_of_its_prediction_towards_its_goal_is_not_a_fault_but_one_behind_or_past_it_is() -> None:
+    """Issue 41: the band runs from the expected (loaded, lagging) position to the goals; an
+    unloaded servo that follows its goals exactly is inside it, a blocked or pushed one is not."""
+    from drivers.safety import band_deviation, evaluate_expected
+
+    expected = np.array([0.0, 0.0, 0.0])
+    goal_before, goal_now = np.array([0.30, -0.30, 0.30]), np.array([0.31, -0.31, 0.31])
+    tol = np.full(3, 0.1)
+    on_goal = np.array([0.31, -0.305, 0.15])  # at the goal, between, half way: all inside the band
+    assert band_deviation(on_goal, expected, goal_before, goal_now).tolist() == [0.0, 0.0, 0.0]
+    count, faults = evaluate_expected(on_goal, expected, tol, np.ones(3, bool), np.full(3, 5, np.int64), 3,
+                                      (goal_before, goal_now))
+    assert faults == [] and count.tolist() == [0, 0, 0]
+    # behind the prediction (blocked, moving the other way) and pushed past the goal: out of the band
+    off = np.array([-0.15, -0.45, 0.31])
+    assert band_deviation(off, expected, goal_before, goal_now) == pytest.approx([0.15, 0.14, 0.0])
+    count = np.zeros(3, np.int64)
+    for _ in range(3):
+        count, faults = evaluate_expected(off, expected, tol, np.ones(3, bool), count, 3, (goal_before, goal_now))
+    assert [(f.kind, f.index) for f in faults] == [(FaultKind.TRACKING, 0), (FaultKind.TRACKING, 1)]
+    # without goals the band is the expected position alone, as before
+    assert band_deviation(on_goal, expected).tolist() == pytest.approx([0.31, 0.305, 0.15])

@@ -177,7 +177,7 @@ def execute_trajectory(robot: Robot, traj: Trajectory, config: ExecutionConfig) 
         print(f"timing: {rep.timing}")
     print(f"max tracking error {rep.max_tracking_error_rad:.4f} rad; safety-clamped cycles {rep.clamped_cycles}")
     if rep.max_expected_error_rad is not None and rep.max_expected_ratio is not None:
-        print(f"largest distance from the proof's predicted positions {rep.max_expected_error_rad:.4f} rad "
+        print(f"largest distance outside the band from the proof's predicted positions to the goals {rep.max_expected_error_rad:.4f} rad "
               f"({rep.max_expected_ratio:.2f} of its tolerance)")
     for f in rep.faults:
         joint = smap.servos[f.index].joint if 0 <= f.index < len(smap) else "bus"
@@ -238,6 +238,6 @@ def _proven_limits_and_expected(traj: Trajectory, smap: ServoMap, limits: Safety
         raise RobotRiseError(f"the proof's predicted positions do not fit the servo map: {e}",
                              hint="is it for this robot? (servos.toml)") from None
     tol = predicted.tolerance_rad[idx]
-    print(f"tracking watched against the proof's predicted positions (tolerance {tol.min():.3f}.."
+    print(f"tracking watched against the band from the proof's predicted positions to the goals (tolerance {tol.min():.3f}.."
           f"{tol.max():.3f} rad)")
     return ExpectedPositions(predicted.t_s, predicted.q_rad[:, idx], tol)

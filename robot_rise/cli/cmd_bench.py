@@ -6,6 +6,7 @@ Other CLI modules can add benchmark sub-commands by exposing ``register_bench(su
 from __future__ import annotations
 
 import argparse
+import sys
 import importlib
 import pkgutil
 from typing import TYPE_CHECKING
@@ -110,6 +111,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--json", action="store_true", help="print JSON")
     add_robot_args(t, scene=False)
     t.set_defaults(func=run_tamper)
+    m = bsub.add_parser("mock-execute", help="proven trajectories executed on --mock and --mock --twin: faults, clamped cycles, band used",
+                        formatter_class=Formatter,
+                        epilog="examples:\n  robot-rise bench mock-execute --rises 0\n  robot-rise bench mock-execute out/rises/*.json --rises 0")
+    m.add_argument("files", nargs="*", metavar="TRAJ", help="proven trajectory files (default: every motion of the robot's library)")
+    m.add_argument("--rises", type=_count, default=30, help="also this many fresh rise outputs from random lying postures (default: 30)")
+    m.add_argument("--seed", type=_count, default=0, help="seed of the lying postures (default: 0)")
+    m.add_argument("--json", action="store_true", help="print JSON")
+    add_robot_args(m, scene=False)
+    m.set_defaults(func=run_mock_execute)
     _register_planners(bsub)
     import robot_rise.cli as cli_pkg
 
@@ -402,6 +412,47 @@ def run_tamper(args: argparse.Namespace) -> int:
             print(f"{Path(r.file).name:40s} {state}; {len(TAMPERS) - len(r.misses)}/{len(TAMPERS)} edits refused{misses}")
         print(f"{refused} of {edits} edits refused ({100 * refused / max(edits, 1):.0f} %), {len(false_refusals)} of {len(rows)} untouched files refused")
     return 0 if refused == edits and not false_refusals else 1
+
+
+def _count(text: str) -> int:
+    """A count flag: a whole number >= 0."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, not {n}")
+    return n
+
+
+def run_mock_execute(args: argparse.Namespace) -> int:
+    import dataclasses
+    import tempfile
+    from pathlib import Path
+
+    from robot_rise.bench.mock_execute import execute_on_mock, rise_outputs
+    from robot_rise.library import load_library, robot_library_dir
+
+    robot = load_robot_arg(args)
+    files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
+    with tempfile.TemporaryDirectory(prefix="robot-rise-mock-execute-") as tmp:
+        if args.rises:
+            print(f"rising from {args.rises} random lying postures ...", file=sys.stderr, flush=True)
+            files += rise_outputs(robot, args.rises, Path(tmp), seed=args.seed)
+        def say(run) -> None:  # type: ignore[no-untyped-def]
+            if not args.json:
+                state = "clean" if run.clean else f"exit {run.exit_code}; {'; '.join(run.faults) or 'no fault'}"
+                print(f"{Path(run.file).name:40s} {'twin' if run.twin else 'mock':4s} {state}; clamped cycles {run.clamped_cycles}; "
+                      f"band used {run.band_ratio}", flush=True)
+        runs = [r for twin in (False, True) for r in execute_on_mock(files, robot, twin=twin, progress=say)]
+    clean = sum(r.clean for r in runs)
+    worst = max((r.band_ratio for r in runs if r.band_ratio is not None), default=None)
+    if args.json:
+        print_json({"runs": [dataclasses.asdict(r) for r in runs], "clean": clean, "total": len(runs), "worst_band_ratio": worst})
+    else:
+        print(f"{clean} of {len(runs)} runs clean (no fault, no clamped cycle) over {len(files)} files; "
+              f"most of the band used: {worst}")
+    return 0 if clean == len(runs) else 1
 
 
 def _library_files(library):  # type: ignore[no-untyped-def]
