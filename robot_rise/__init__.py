@@ -18,10 +18,10 @@ Streaming a trajectory to servos lives in the sibling package ``drivers`` (``Dyn
 """
 
 from robot_rise.errors import RobotRiseError
-from robot_rise.proof import Proof, check
+from robot_rise.proof import Proof, ProofConfig, check
 from robot_rise.model import Robot, load_robot
 from robot_rise.posture import Posture, read_posture, write_posture
-from robot_rise.rise import RiseResult, rise
+from robot_rise.rise import RiseOptions, RiseResult, rise
 from robot_rise.sampling import sample_lying_postures
 from robot_rise.trajectory import Trajectory, read_trajectory, write_trajectory
 
@@ -33,9 +33,11 @@ __all__ = [
     "write_posture",
     "sample_lying_postures",
     "rise",
+    "RiseOptions",
     "RiseResult",
     "check",
     "Proof",
+    "ProofConfig",
     "Trajectory",
     "read_trajectory",
     "write_trajectory",

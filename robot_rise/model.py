@@ -49,6 +49,18 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+_mujoco_log = logging.getLogger("mujoco")
+
+
+def _mujoco_warning(message: str) -> None:
+    _mujoco_log.warning("%s", message.strip())
+
+
+# MuJoCo's own warning handler appends to MUJOCO_LOG.TXT in the working directory (a file the user
+# never asked for, left behind by a model it warns about): its warnings go to logging instead,
+# unless the program using robot_rise has set a handler of its own
+if mujoco.get_mju_user_warning() is None:
+    mujoco.set_mju_user_warning(_mujoco_warning)
 
 ROBOT_FORMAT = "robot-rise/robot@1"
 GROUND_PREFIX = "ground"  # world geoms named ground* are the ground; others are obstacles

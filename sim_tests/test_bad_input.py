@@ -110,3 +110,15 @@ def test_the_version_is_printed() -> None:
 
     r = _run("--version")
     assert r.returncode == 0 and r.stdout.strip() == f"robot-rise {version('robot-rise')}"
+
+
+def test_a_model_mujoco_warns_about_leaves_no_mujoco_log_in_the_working_directory(tmp_path: Path) -> None:
+    """Issue 41: MuJoCo's warnings go to the log, not to a MUJOCO_LOG.TXT where the user stands."""
+    model = tmp_path / "warned.xml"
+    model.write_text('<mujoco><worldbody><body><joint type="hinge" range="nan nan"/><geom size="0.1"/></body></worldbody></mujoco>')
+    r = subprocess.run([sys.executable, "-c", "import robot_rise.model, mujoco, sys\n"
+                        "try:\n    mujoco.MjModel.from_xml_path(sys.argv[1])\nexcept ValueError:\n    pass\n", str(model)],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "NaN" in r.stderr  # said, through logging
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

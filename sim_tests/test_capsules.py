@@ -13,7 +13,7 @@ from scipy.spatial import ConvexHull
 
 from robot_rise.geometry import hull_vertices
 from robot_rise.model import compose, load_robot, model_index
-from robot_rise.planning.energy import capsules
+from robot_rise.planning.energy import capsules, hull_fit
 from robot_rise.planning.energy.capsules import (
     ground_halfspaces,
     non_adjacent_pairs,
@@ -192,7 +192,7 @@ def _hulls() -> dict[str, np.ndarray]:
     }
 
 
-def _outside_m(points: np.ndarray, fit: capsules.HullFit) -> np.ndarray:
+def _outside_m(points: np.ndarray, fit: hull_fit.HullFit) -> np.ndarray:
     """How far each point lies outside every capsule of a fit [m] (<= 0: inside one), shape (n,)."""
     ab = fit.b - fit.a
     length2 = np.einsum("kj,kj->k", ab, ab)
@@ -204,15 +204,15 @@ def _outside_m(points: np.ndarray, fit: capsules.HullFit) -> np.ndarray:
 @pytest.mark.parametrize("shape", ["box", "rod", "plate", "blob"])
 def test_that_hull_capsules_contain_every_hull_vertex(shape):
     hull = _hulls()[shape]
-    fit = capsules.fit_hull_capsules(hull)
-    assert 1 <= len(fit) <= capsules.MAX_CAPSULES_PER_MESH
+    fit = hull_fit.fit_hull_capsules(hull)
+    assert 1 <= len(fit) <= hull_fit.MAX_CAPSULES_PER_MESH
     assert _outside_m(hull, fit).max() <= 1e-12
 
 
 @pytest.mark.parametrize("shape", ["box", "rod", "plate", "blob"])
 def test_that_the_reported_fit_error_is_how_far_the_capsules_reach_beyond_the_hull(shape):
     hull = _hulls()[shape]
-    fit = capsules.fit_hull_capsules(hull)
+    fit = hull_fit.fit_hull_capsules(hull)
     n = np.random.default_rng(11).normal(size=(200_000, 3))
     n /= np.linalg.norm(n, axis=1)[:, None]
     # for convex sets, max over the capsule of the distance to the hull = max_n h_capsule(n) - h_hull(n)
@@ -227,19 +227,19 @@ def test_that_a_capsule_shaped_hull_is_fitted_by_one_tight_capsule():
     u /= np.linalg.norm(u, axis=1)[:, None]
     surface = 0.02 * u + np.where(u[:, 2:] > 0, 1.0, -1.0) * [0.0, 0.0, 0.04]  # radius 20 mm, segment 80 mm
     hull = surface[ConvexHull(surface).vertices]
-    fit = capsules.fit_hull_capsules(hull)
+    fit = hull_fit.fit_hull_capsules(hull)
     assert len(fit) == 1 and fit.error_m < 0.001
     assert fit.radius[0] == pytest.approx(0.02, abs=0.001)
 
 
 def test_that_more_capsules_reach_less_far_beyond_a_box():
     hull = _hulls()["box"]
-    one = capsules.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=1)
-    eight = capsules.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=8)
+    one = hull_fit.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=1)
+    eight = hull_fit.fit_hull_capsules(hull, max_error_m=0.0, max_capsules=8)
     assert len(one) == 1 and 1 < len(eight) <= 8
     assert eight.error_m < 0.8 * one.error_m
     with pytest.raises(ValueError, match="max_capsules"):
-        capsules.fit_hull_capsules(hull, max_capsules=0)
+        hull_fit.fit_hull_capsules(hull, max_capsules=0)
 
 
 FILTERED = """
@@ -285,7 +285,7 @@ def test_that_mesh_geoms_become_capsules_that_contain_their_hull_in_the_world(fi
         k = caps.geom == g
         assert k.sum() >= 1
         world = d.geom_xpos[g] + hull_vertices(m, g) @ d.geom_xmat[g].reshape(3, 3).T
-        fit = capsules.HullFit(a[k], b[k], caps.radius[k], 0.0)
+        fit = hull_fit.HullFit(a[k], b[k], caps.radius[k], 0.0)
         assert _outside_m(world, fit).max() <= 1e-9
 
 
@@ -302,10 +302,10 @@ def test_that_visual_geoms_are_no_capsules_and_model_filtered_links_are_no_pair(
 
 def test_that_each_mesh_fit_is_reported_with_its_error(filtered):
     m, idx = filtered
-    fits = capsules.mesh_fits(m, idx.robot_geoms)
+    fits = hull_fit.mesh_fits(m, idx.robot_geoms)
     assert [f.name for f in fits] == ["trunk", "left_foot", "right_foot"]
     for f in fits:
-        assert f.capsules >= 1 and f.error_m >= 0.0 and f.within_bound == (f.error_m <= capsules.MESH_CAPSULE_MAX_ERROR_M)
+        assert f.capsules >= 1 and f.error_m >= 0.0 and f.within_bound == (f.error_m <= hull_fit.MESH_CAPSULE_MAX_ERROR_M)
         assert f.name in f.describe() and "mm beyond the hull" in f.describe()
 
 
@@ -318,7 +318,7 @@ def test_that_bez1s_capsules_overlap_at_its_zero_pose_only_where_its_hulls_are_w
     hinges = tuple(m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE)
     idx = model_index(m, SimpleNamespace(root_body="torso_2023", joint_names=hinges))
     caps = robot_capsules(m, idx)
-    fits = {f.geom: f for f in capsules.mesh_fits(m, idx.robot_geoms)}
+    fits = {f.geom: f for f in hull_fit.mesh_fits(m, idx.robot_geoms)}
     assert len(fits) == 19 and max(f.error_m for f in fits.values()) < 0.035
     i, j = non_adjacent_pairs(m, caps)
     bodies = {frozenset((m.body(int(caps.body[p])).name, m.body(int(caps.body[q])).name)) for p, q in zip(i, j)}
