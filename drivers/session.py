@@ -25,7 +25,7 @@ from drivers.servo_map import ServoMap
 __all__ = ["Connection", "connect", "mock_bus_for", "mock_url_for"]
 
 if TYPE_CHECKING:
-    from drivers.mockbus import JointPlant, MockBus, Plant
+    from drivers.mockbus import FaultInjector, JointPlant, MockBus, Plant
     from drivers.mockbus.emulated_imu import EmulatedImu
 
 _log = logging.getLogger(__name__)
@@ -58,7 +58,8 @@ class Connection:
 
 def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None = None,
                  wire_timing: bool = True, clock: Clock | None = None, return_delay_units: int = 0,
-                 plant: "Plant | JointPlant | None" = None, imu: "EmulatedImu | None" = None) -> "MockBus":
+                 plant: "Plant | JointPlant | None" = None, imu: "EmulatedImu | None" = None,
+                 faults: "FaultInjector | None" = None) -> "MockBus":
     """An emulated bus holding the servos of ``servo_map`` (at the map's baud rate).
 
     Args:
@@ -73,6 +74,8 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
             map (:class:`drivers.mockbus.ServoFramePlant`).
         imu: an OpenCR sub-controller on the bus (e.g. ``EmulatedImu()`` at ID 200), fed by the
             plant's IMU hook (the physics twin) unless it has a source of its own; None: no IMU.
+        faults: the bus's fault injector (e.g. seeded); default: none, every servo at the map's
+            supply voltage.
     """
     import drivers.mockbus as mb
 
@@ -82,16 +85,16 @@ def mock_bus_for(servo_map: ServoMap, *, initial_rad: Mapping[str, float] | None
     for s in servo_map.servos:
         q = (initial_rad or {}).get(s.joint, 0.0)
         init[s.id] = s.to_ticks(min(max(q, s.min), s.max))
+    if faults is None:
+        faults = mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v)
     if servo_map.protocol == 1.0:
         if imu is not None:
             raise ValueError("the OpenCR (IMU) speaks Protocol 2.0; a Protocol 1.0 bus has none")
         return mb.MockBus1({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
-                           faults=mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v),
-                           clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
+                           faults=faults, clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
                            initial_position_ticks=init, return_delay_units=return_delay_units)
     return mb.MockBus({s.id: s.model for s in servo_map.servos}, baud_rate=servo_map.bus.baud_rate,
-                      faults=mb.FaultInjector(input_voltage_v=servo_map.bus.supply_voltage_v),
-                      clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
+                      faults=faults, clock=clock or MonotonicClock(), wire_timing=wire_timing, plant=plant,
                       initial_position_ticks=init, return_delay_units=return_delay_units, imu=imu)
 
 

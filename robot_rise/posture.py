@@ -53,6 +53,9 @@ log = logging.getLogger(__name__)
 
 POSTURE_FORMAT = "robot-rise/posture@1"
 QUAT_NORM_TOLERANCE = 1e-3  # |q| must be 1 within this to count as a unit quaternion
+# |q| off 1 by more than this is normalised: q / |q| is not idempotent in floating point (its norm is
+# 1 only to ~2e-16), so a quaternion normalised once is kept as it is (a file read back seals the same)
+QUAT_RENORM_ABOVE = 1e-12
 # Joint angles may lie this far past a limit and are clamped into it [rad]: four ticks of a
 # 4096-tick-per-turn servo (Dynamixel XM430, 4 * 2 pi / 4096 = 6.14 mrad). A body resting on a
 # limb presses the joint onto its stop, where a real servo reads it too: another team's OP3 model
@@ -95,7 +98,8 @@ class Posture:
         if bad:
             raise PostureError(f"joint angles are NaN or infinite: {', '.join(bad)}")
         pos.setflags(write=False)
-        quat = quat / norm
+        if abs(norm - 1.0) > QUAT_RENORM_ABOVE:  # a unit quaternion stays bit for bit: a posture read back is the one written
+            quat = quat / norm
         quat.setflags(write=False)
         object.__setattr__(self, "root_pos", pos)
         object.__setattr__(self, "root_quat_wxyz", quat)

@@ -56,3 +56,24 @@ def test_no_command_prints_help_and_exits_with_usage_error(capsys):
 def test_sample_rejects_bad_arguments_cleanly(argv, capsys):
     assert main(argv) == 2
     assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_that_sample_refuses_to_overwrite_a_posture_file_unless_forced(tmp_path, capsys):
+    assert main(["sample", "--kind", "supine", "--n", "2", "--seed", "4", "--out", str(tmp_path)]) == 0
+    first, second = sorted(tmp_path.glob("supine_4_*.json"))
+    second.unlink()
+    first.write_text("mine")
+    capsys.readouterr()
+    assert main(["sample", "--kind", "supine", "--n", "2", "--seed", "4", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: {first} exists: pass --force to replace, or choose another --out or --seed\n"
+    assert first.read_text() == "mine" and not second.exists()  # nothing half-written
+    # kind "any": the names are known only after sampling; still refused before any file is written
+    assert main(["sample", "--kind", "any", "--n", "1", "--seed", "4", "--out", str(tmp_path / "any")]) == 0
+    written = next((tmp_path / "any").glob("*.json"))
+    written.write_text("mine")
+    capsys.readouterr()
+    assert main(["sample", "--n", "1", "--seed", "4", "--out", str(tmp_path / "any")]) == 2
+    assert written.read_text() == "mine" and "--force" in capsys.readouterr().err
+    assert main(["sample", "--kind", "supine", "--n", "2", "--seed", "4", "--out", str(tmp_path), "--force"]) == 0
+    assert first.read_text() != "mine" and second.exists()

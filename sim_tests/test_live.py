@@ -105,7 +105,8 @@ def test_that_the_estimate_of_a_lying_twin_has_its_kind_and_orientation_from_the
 
 
 def test_that_getup_on_the_twin_from_lying_prone_ends_standing_with_a_report_per_attempt() -> None:
-    code, out = _run_cli("getup", "--mock", "--twin", "--lying", "prone", "--seed", "3", "--json")
+    # whole proofs: this session's start proof cache is cold (the composed default: the slow test below)
+    code, out = _run_cli("getup", "--mock", "--twin", "--lying", "prone", "--seed", "3", "--json", "--whole-proofs")
     report = json.loads(out)
     assert code == 0 and report["standing"] and not report["gave_up"]
     first = report["attempts"][0]
@@ -116,9 +117,22 @@ def test_that_getup_on_the_twin_from_lying_prone_ends_standing_with_a_report_per
 
 
 def test_that_a_standing_robot_is_left_alone() -> None:
-    code, out = _run_cli("getup", "--mock", "--twin", "--json")
+    code, out = _run_cli("getup", "--mock", "--twin", "--json", "--whole-proofs")
     report = json.loads(out)
     assert code == 0 and report["already_standing"] and report["attempts"] == []
+
+
+@pytest.mark.slow
+def test_that_getup_composes_with_the_cached_start_proofs_and_moves_within_seconds() -> None:
+    """The default getup composes its proof with the library motions' start proofs, as the guard
+    does: a cold cache says so and fills it; a getup after it reads them and moves in seconds."""
+    code, out = _run_cli("getup", "--mock", "--twin", "--lying", "prone", "--seed", "1")
+    assert code == 0, out
+    assert "library motions compose" in out and "standing after 1 attempt(s)" in out
+    code, out = _run_cli("getup", "--mock", "--twin", "--lying", "supine", "--seed", "1", "--json")
+    first = json.loads(out)["attempts"][0]
+    assert code == 0 and first["proven"] and first["standing"]
+    assert first["estimate_cpu_s"] + first["plan_cpu_s"] < 5.0  # whole proofs: 10-20 s here
 
 
 def test_that_a_low_supply_refuses_to_move_and_leaves_the_robot_limp(robot: Robot) -> None:

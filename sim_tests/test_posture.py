@@ -213,3 +213,21 @@ def test_yaw_is_the_heading_of_the_x_axis_on_the_ground_whatever_the_lean(angle)
 
 def test_yaw_is_zero_when_the_x_axis_points_straight_up():
     assert yaw_rad(np.array([math.cos(math.pi / 4), 0.0, -math.sin(math.pi / 4), 0.0])) == 0.0
+
+
+def test_a_posture_written_and_read_back_has_the_same_quaternion_bit_for_bit(robot, tmp_path):
+    """A rise output's seal covers its start: reading must not renormalise an already unit quaternion
+    (q / |q| is not idempotent in floating point; 1 of 30 fresh rise outputs was refused for it)."""
+    rng = np.random.default_rng(0)
+    base = read_posture(_LYING, robot)
+    changed = 0
+    for i in range(200):
+        q = rng.normal(size=4)
+        p = Posture(robot.name, base.root_pos, q / np.linalg.norm(q), base.joints)
+        write_posture(tmp_path / "p.json", p)
+        back = read_posture(tmp_path / "p.json", robot)
+        changed += not np.array_equal(back.root_quat_wxyz, p.root_quat_wxyz)
+    assert changed == 0
+    # far from unit (within the tolerance) is still normalised
+    p = Posture(robot.name, base.root_pos, np.array([1.0005, 0.0, 0.0, 0.0]), base.joints)
+    assert np.linalg.norm(p.root_quat_wxyz) == pytest.approx(1.0, abs=1e-15)

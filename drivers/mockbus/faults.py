@@ -3,6 +3,16 @@
 A :class:`FaultInjector` is a controller object (mutable on purpose) that the emulator consults
 for every reply. Tests script faults directly (``faults.silence(3)``) or at a time on the bus
 clock (``faults.at(1.5, lambda bus: bus.faults.silence(3))``).
+
+The same injector serves both buses, :class:`~drivers.mockbus.MockBus` (Protocol 2.0) and
+:class:`~drivers.mockbus.MockBus1` (Protocol 1.0): the emulator mangles every status packet it
+puts on the wire through :meth:`FaultInjector.mangle`, whatever its framing. On a 1.0 bus a
+corrupted status fails its checksum, a lost or corrupted BULK_READ status leaves the servos
+listed after it waiting (the rest of the list stays silent, as the firmware does), and the bits
+of :meth:`FaultInjector.hardware_error` are the status error byte's alarm bits
+(:class:`drivers.protocol1.ErrorBits1`: input voltage, overheating and overload have the 2.0
+Hardware Error values). The reply faults draw from one RNG seeded with ``seed``; the counters
+``dropped``, ``truncated`` and ``corrupted`` say how many statuses each fault took.
 """
 
 from __future__ import annotations
@@ -46,6 +56,8 @@ class FaultInjector:
             ``voltage_by_id``).
         heating_gain: multiplies the emulator's I^2 heating (temperature rise under load).
         seed: seed of the fault RNG (reproducible).
+        dropped / truncated / corrupted: status packets the reply faults have dropped, cut
+            short and corrupted so far (what a benchmark compares with what the host noticed).
     """
 
     silent_ids: set[int] = field(default_factory=set)
@@ -61,6 +73,9 @@ class FaultInjector:
     pending_hardware_errors: dict[int, int] = field(default_factory=dict)
     scheduled: list[ScheduledFault] = field(default_factory=list)
     seed: int = 0
+    dropped: int = 0
+    truncated: int = 0
+    corrupted: int = 0
 
     def __post_init__(self) -> None:
         self._rng = random.Random(self.seed)
@@ -79,7 +94,8 @@ class FaultInjector:
         self.stuck_ids.add(servo_id)
 
     def hardware_error(self, servo_id: int, bits: int) -> None:
-        """Raise hardware error ``bits`` (see ``HardwareErrorBits``) on ``servo_id`` at the next step."""
+        """Raise hardware error ``bits`` on ``servo_id`` at the next step (``HardwareErrorBits`` on
+        2.0; on 1.0 the alarm bits of ``ErrorBits1``, e.g. ``ErrorBits1.OVERLOAD``)."""
         self.pending_hardware_errors[servo_id] = self.pending_hardware_errors.get(servo_id, 0) | bits
 
     def at(self, at_s: float, action: Callable[["MockBus"], None]) -> None:
@@ -100,10 +116,13 @@ class FaultInjector:
         """Apply the random reply faults; ``None`` means the reply is dropped."""
         rng = self._rng
         if self.drop_probability and rng.random() < self.drop_probability:
+            self.dropped += 1
             return None
         if self.truncate_probability and rng.random() < self.truncate_probability:
+            self.truncated += 1
             return reply[: rng.randrange(0, len(reply))]
         if self.corrupt_probability and rng.random() < self.corrupt_probability:
+            self.corrupted += 1
             k = rng.randrange(len(reply))
             b = bytearray(reply)
             b[k] ^= 1 << rng.randrange(8)

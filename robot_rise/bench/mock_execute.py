@@ -9,6 +9,7 @@ Rise outputs to run are made here from random lying postures (``rise_outputs``).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import subprocess
@@ -38,6 +39,7 @@ class MockRun:
     faults: tuple[str, ...]
     clamped_cycles: int | None
     band_ratio: float | None
+    said: str = ""  # the command's error line, where it refused or failed before streaming
 
     @property
     def clean(self) -> bool:
@@ -56,6 +58,9 @@ def execute_on_mock(files: Sequence[Path], robot: Robot, *, twin: bool,
         ratio, clamped = _RATIO.search(out), _CLAMPED.search(out)
         run = MockRun(str(path), twin, done.returncode, tuple(l for l in out.splitlines() if l.startswith("FAULT")),
                       int(clamped.group(1)) if clamped else None, float(ratio.group(1)) if ratio else None)
+        if not run.clean and not run.faults:
+            errors = [l for l in out.splitlines() if l.startswith("error:")]
+            run = dataclasses.replace(run, said=errors[0] if errors else (out.strip().splitlines() or [""])[-1])
         runs.append(run)
         if progress is not None:
             progress(run)

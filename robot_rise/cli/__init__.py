@@ -19,7 +19,7 @@ from collections.abc import Callable, Sequence
 
 from robot_rise.errors import RobotRiseError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "parse_args"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1  # the command ran but the answer is "no" (invalid posture, robot did not stand)
@@ -65,11 +65,14 @@ def _external_error_types() -> tuple[type[BaseException], ...]:
     return tuple(types)
 
 
-_GLOBAL_FLAGS = ("--debug", "-v", "--verbose")
+_GLOBAL_FLAGS = ("--debug", "-v", "--verbose", "--version")
 
 
 def _globals_first(argv: Sequence[str]) -> list[str]:
-    """The global flags moved before the command: ``rise ... --debug`` as ``--debug rise ...``."""
+    """The global flags moved before the command: ``rise ... --debug`` as ``--debug rise ...``.
+
+    No sub-command defines a flag of the same name (sim_tests/test_cli_conventions.py checks it).
+    """
     argv = list(argv)
     end = argv.index("--") if "--" in argv else len(argv)
     flags = [a for a in argv[:end] if a in _GLOBAL_FLAGS]
@@ -118,10 +121,15 @@ def _check_flag_values(args: argparse.Namespace) -> str:
     return ""
 
 
+def parse_args(argv: Sequence[str], parser: argparse.ArgumentParser | None = None) -> argparse.Namespace:
+    """Parse a command line as :func:`main` does (global flags anywhere); argparse exits on bad usage."""
+    return (parser or build_parser()).parse_args(_globals_first(argv))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the process exit code."""
     parser = build_parser()
-    args = parser.parse_args(_globals_first(sys.argv[1:] if argv is None else argv))
+    args = parse_args(sys.argv[1:] if argv is None else argv, parser)
     bad_flag = _check_flag_values(args)
     if bad_flag:
         print(f"error: {bad_flag}", file=sys.stderr)

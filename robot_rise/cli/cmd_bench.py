@@ -31,6 +31,18 @@ get-up, once the body is off the floor: the IMU, read in every cycle, sees the t
 proof's tilt). Every goal on the bus is checked against the servo map's limits.
 """
 
+BUS1_FAULTS_EPILOG = """example:
+  robot-rise bench bus1-faults --kind overload --kind host-killed
+20 servos on Protocol 1.0 at 1 Mbps (16 MX-28 with 1.0 firmware, 4 AX-18A); the executor streams a
+wave riding each joint's limits at 100 Hz while one fault strikes at a seeded 20-70 % of it: drop,
+corrupt, truncate (2 % of the status packets), missing-mx / missing-ax (a servo stops answering),
+overload (the alarm bit: Alarm Shutdown takes its torque), overheating, undervoltage (9 V),
+overvoltage (15.5 V), on the emulator in-process on a fake clock; host-terminated (SIGTERM) and
+host-killed (SIGKILL) to a child process streaming over a pseudo-terminal. Every goal on the bus is
+checked against the servo map's limits; exit 1 unless every fault was stopped or reported with no
+goal out of limits, no traceback and the servos left holding, free or torque off.
+"""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -120,6 +132,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--json", action="store_true", help="print JSON")
     add_robot_args(m, scene=False)
     m.set_defaults(func=run_mock_execute)
+    from robot_rise.bench.bus1_faults import Bus1Fault
+
+    b1 = bsub.add_parser("bus1-faults", help="Protocol 1.0: the 2.0 fault campaign on a 20-servo 1.0 bus (MX-28 + AX-18A): "
+                         "goals in limits, every fault stopped or reported, no traceback",
+                         formatter_class=Formatter, epilog=BUS1_FAULTS_EPILOG)
+    b1.add_argument("--kind", action="append", choices=[k.value for k in Bus1Fault], help="fault kind(s) (default: all)")
+    b1.add_argument("--seed", type=_count, default=0, help="seed of the strike times, struck servos and lost statuses (default: 0)")
+    b1.add_argument("--json", action="store_true", help="print every row and the totals as JSON")
+    b1.set_defaults(func=run_bus1_faults)
     _register_planners(bsub)
     import robot_rise.cli as cli_pkg
 
@@ -414,6 +435,21 @@ def run_tamper(args: argparse.Namespace) -> int:
     return 0 if refused == edits and not false_refusals else 1
 
 
+def run_bus1_faults(args: argparse.Namespace) -> int:
+    from robot_rise.bench.bus1_faults import Bus1Fault, bus1_fault_campaign, bus1_faults_table
+
+    kinds = [Bus1Fault(k) for k in dict.fromkeys(args.kind)] if args.kind else list(Bus1Fault)
+    rows = bus1_fault_campaign(kinds, seed=args.seed)
+    if args.json:
+        print_json({"seed": args.seed, "rows": [r.to_dict() for r in rows], "ok": sum(r.ok for r in rows), "total": len(rows),
+                    "goals_written": sum(r.goals_written for r in rows),
+                    "goals_out_of_limits": sum(r.goals_out_of_limits for r in rows),
+                    "tracebacks": sum(r.traceback_seen for r in rows)})
+    else:
+        print(bus1_faults_table(rows))
+    return 0 if all(r.ok for r in rows) else 1
+
+
 def _count(text: str) -> int:
     """A count flag: a whole number >= 0."""
     try:
@@ -441,7 +477,7 @@ def run_mock_execute(args: argparse.Namespace) -> int:
             files += rise_outputs(robot, args.rises, Path(tmp), seed=args.seed)
         def say(run) -> None:  # type: ignore[no-untyped-def]
             if not args.json:
-                state = "clean" if run.clean else f"exit {run.exit_code}; {'; '.join(run.faults) or 'no fault'}"
+                state = "clean" if run.clean else f"exit {run.exit_code}; {'; '.join(run.faults) or run.said or 'no fault'}"
                 print(f"{Path(run.file).name:40s} {'twin' if run.twin else 'mock':4s} {state}; clamped cycles {run.clamped_cycles}; "
                       f"band used {run.band_ratio}", flush=True)
         runs = [r for twin in (False, True) for r in execute_on_mock(files, robot, twin=twin, progress=say)]

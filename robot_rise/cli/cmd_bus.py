@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
-from robot_rise.cli._common import Formatter
+from robot_rise.cli._common import Formatter, print_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +34,7 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
                    help=f"pty emulator under SCHED_FIFO priority P where permitted (default {EMULATOR_RT_PRIORITY}; 0: normal)")
     p.add_argument("--spin-ms", type=float, default=None, metavar="MS",
                    help=f"busy-waited end of each sleep [ms] (default {SPIN_MARGIN_S * 1e3:g})")
+    p.add_argument("--json", action="store_true", help="print one JSON object (a 'results' list, one per baud rate)")
     p.set_defaults(func=run)
     p = bsub.add_parser("bus1", help="Protocol 1.0: cycles/s of a 20-servo bus vs the wire limit, host CPU per cycle",
                         formatter_class=Formatter,
@@ -46,6 +48,7 @@ def register_bench(bsub: argparse._SubParsersAction) -> None:
                    help="emulator in a child process on a pseudo-terminal (default) or in-process (dxlsim://)")
     p.add_argument("--emulator-rt-priority", type=int, default=20, metavar="P",
                    help="pty emulator under SCHED_FIFO priority P where permitted (default 20; 0: normal)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
     p.set_defaults(func=run_bus1)
 
 
@@ -54,7 +57,10 @@ def run_bus1(args: argparse.Namespace) -> int:
 
     r = bench_protocol1(n=args.servos, model=args.model, baud_rate=args.baud, cycles=args.cycles,
                         transport=args.transport, emulator_rt_priority=args.emulator_rt_priority or None)
-    print(format_cycle_rate(r))
+    if args.json:
+        print_json(dataclasses.asdict(r))
+    else:
+        print(format_cycle_rate(r))
     return 0
 
 
@@ -63,9 +69,14 @@ def run(args: argparse.Namespace) -> int:
     from robot_rise.bench.bus import bench_bus, format_result
 
     spin_s = SPIN_MARGIN_S if args.spin_ms is None else args.spin_ms * 1e-3
+    results = []
     for baud in args.baud or (1_000_000, 4_000_000):
         r = bench_bus(baud, cycles=args.cycles, jitter_s=args.jitter_seconds, transport=args.transport,
                       realtime_priority=args.rt_priority, emulator_rt_priority=args.emulator_rt_priority or None,
                       spin_margin_s=spin_s, cpu_latency_us=None if args.cpu_idle else 0)
-        print(format_result(r), flush=True)  # each baud rate as it is measured
+        results.append(dataclasses.asdict(r))
+        if not args.json:
+            print(format_result(r), flush=True)  # each baud rate as it is measured
+    if args.json:
+        print_json({"results": results})
     return 0

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields
 
-from robot_rise.cli._common import Formatter
-from robot_rise.cli._execution import ExecutionConfig, execute_trajectory
+from robot_rise.cli._common import Formatter, print_json
+from robot_rise.cli._execution import ExecutionConfig, execute_trajectory, result_lines
 
 EPILOG = """examples:
-  robot-rise execute out/demo/getup.json --mock --yes
-  robot-rise execute out/demo/getup.json --mock --twin --yes   # does the simulated robot stand up?
+  robot-rise execute out/demo/rise.json --mock --yes
+  robot-rise execute out/demo/rise.json --mock --twin --yes   # does the simulated robot stand up?
   robot-rise execute getup.json --port /dev/ttyUSB0 --speed 0.5 --approach 3 --log run.csv
+  robot-rise execute out/demo/rise.json --mock --twin --yes --json   # one JSON object; progress on stderr
 exit code: 0 only if the whole trajectory ran without a fault; 1 on a fault; 2 on refused input.
 """
 
@@ -45,6 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--realtime", action="store_true",
                    help="with --twin: run on the wall clock (default: a simulated clock, as fast as the CPU "
                         "allows and independent of machine load)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object of the outcome (progress lines go to stderr)")
     p.set_defaults(func=run)
 
 
@@ -55,4 +59,10 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     traj = read_trajectory(args.trajectory)
     config = ExecutionConfig(**{f.name: getattr(args, f.name) for f in fields(ExecutionConfig)})
-    return execute_trajectory(robot, traj, config)
+    result = execute_trajectory(robot, traj, config, progress=sys.stderr if args.json else None)
+    if args.json:
+        print_json(result.as_dict())
+    else:
+        for line in result_lines(result):
+            print(line)
+    return result.exit_code

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from robot_rise.cli._common import Formatter
+from robot_rise.cli._common import Formatter, print_json
 
 __all__ = ["register"]
 
@@ -22,6 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("store", metavar="STORE", help="results store directory (robot-rise batch --out)")
     p.add_argument("--format", required=True, choices=("parquet", "csv", "npz"), help="table format")
     p.add_argument("--out", required=True, metavar="FILE", help="file to write")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
     p.set_defaults(func=run)
 
 
@@ -29,5 +30,8 @@ def run(args: argparse.Namespace) -> int:
     from robot_rise.batch import export_trajectories
 
     count = export_trajectories(args.store, args.format, args.out)
-    print(f"wrote {args.out}: {count} proven trajectories")
+    if args.json:
+        print_json({"file": str(args.out), "format": args.format, "trajectories": count})
+    else:
+        print(f"wrote {args.out}: {count} proven trajectories")
     return 0

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg
+from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
 from robot_rise.errors import ConfigError
 from robot_rise.fileio import write_text_atomic
 from robot_rise.trajectory import read_trajectory, write_csv
@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE", help="CSV file to write (default: TRAJ with .csv)")
     p.add_argument("--units", choices=("rad", "ticks"), default="rad", help="radians per joint, or servo ticks per servo ID (default: rad)")
     p.add_argument("--rate", type=float, metavar="HZ", help="resample at this rate (default: the file's rows for rad, 100 Hz for ticks)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
     add_robot_args(p, scene=False)
     p.set_defaults(func=run)
 
@@ -43,7 +44,11 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.trajectory).with_suffix(".csv")
     if args.units == "rad" and args.rate is None:
         write_csv(out, tr)
-        print(f"wrote {out}: {len(tr.t)} rows x {len(tr.joint_names)} joints [rad], {tr.duration_s:.2f} s")
+        if args.json:
+            print_json({"file": str(out), "units": "rad", "rows": len(tr.t), "rate_hz": None,
+                        "columns": list(tr.joint_names), "duration_s": tr.duration_s})
+        else:
+            print(f"wrote {out}: {len(tr.t)} rows x {len(tr.joint_names)} joints [rad], {tr.duration_s:.2f} s")
         return 0
     rate = args.rate if args.rate is not None else DEFAULT_RATE_HZ
     t = np.arange(0.0, tr.duration_s + 0.5 / rate, 1.0 / rate)
@@ -56,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         for ti, row in zip(t, q):
             w.writerow([f"{ti:.6f}", *(f"{x:.6f}" for x in row)])
         what = f"{len(tr.joint_names)} joints [rad]"
+        columns_out = list(tr.joint_names)
     else:
         robot = load_robot_arg(args)
         if tr.robot != robot.name:
@@ -70,6 +76,11 @@ def run(args: argparse.Namespace) -> int:
         for ti, row in zip(t, ticks):
             w.writerow([f"{ti:.6f}", *(str(int(x)) for x in row)])
         what = f"{len(servo_map.ids)} servos [ticks]"
+        columns_out = [str(i) for i in servo_map.ids]
     write_text_atomic(out, buf.getvalue())
+    if args.json:
+        print_json({"file": str(out), "units": args.units, "rows": len(t), "rate_hz": rate, "columns": columns_out,
+                    "duration_s": tr.duration_s})
+        return 0
     print(f"wrote {out}: {len(t)} rows at {rate:g} Hz x {what}, {tr.duration_s:.2f} s")
     return 0

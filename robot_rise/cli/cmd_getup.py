@@ -54,6 +54,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --twin: start the twin lying like this (a settled random posture, --seed)")
     p.add_argument("--start", metavar="POSTURE", help="with --twin: start the twin in this posture file")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("--whole-proofs", action="store_true",
+                   help="replay every get-up whole on every model variant instead of composing its proof with the library "
+                        "motions' own, kept in the start proof cache (slower first command)")
     p.set_defaults(func=run)
 
 
@@ -106,8 +109,8 @@ def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
     on a simulated clock), preflight, find the IMU; precompute the per-robot parts (rise context
     with the ensemble's players, the posture estimator). ``stock``: the stock OP3's keyframe
     planner instead (comparison). ``composed``: proofs composed with the library motions' start
-    proofs (``robot_rise.proof.composed``), all precomputed here (a guard waits for falls; a
-    one-shot get-up would spend more on them than they save)."""
+    proofs (``robot_rise.proof.composed``), all loaded here from the start proof cache, or
+    proven once and kept there when the cache is cold (``say`` tells how long)."""
     from drivers.clock import FakeClock
     from drivers.imu import OpenCrImu
     from drivers.mockbus.emulated_imu import EmulatedImu
@@ -156,16 +159,38 @@ def open_live_session(args: argparse.Namespace, *, start: Posture | None = None,
         else:
             context.ensemble()  # the variants' players, built now rather than at the first fall
             if composed:
-                t_warm = time.monotonic()
-                (say or (lambda s: None))(f"proving the {len(context.library.motions)} library motions from rest on every model variant (once per start)")
-                ready = context.warm_start_proofs()
-                (say or (lambda s: None))(f"{ready} of {len(context.library.motions)} compose ({time.monotonic() - t_warm:.0f} s)")
+                _warm_start_proofs(context, say or (lambda s: None))
             planner = RisePlanner(context, budget_s=args.budget, composed=composed)
         estimator = PostureEstimator(robot, args.scene, checker=context.checker)
         io = BusRobotIO(robot, smap, conn, imu_dev, simulated=twin is not None, twin=twin, allow_unproven=stock)
         yield LiveSession(robot, io, planner, estimator, twin, time.monotonic() - t0)
     finally:
         conn.close()
+
+
+COLD_START_PROOF_S = 1.0  # [s] a start proof that took longer than this was proven, not read from the cache (ours: a read takes ~0.05 s)
+
+
+def _warm_start_proofs(context: Any, say: Callable[[str], None]) -> int:
+    """``RiseContext.warm_start_proofs`` motion by motion: a cold cache is said, with how long it
+    will take (from the first proof that was not in the cache); how many compose."""
+    motions = context.library.motions
+    t0 = time.monotonic()
+    ready = 0
+    cold = False
+    for k, motion in enumerate(motions):
+        t = time.monotonic()
+        ready += context.start_proof(motion) is not None
+        took = time.monotonic() - t
+        if took > COLD_START_PROOF_S and not cold:
+            cold = True
+            left = len(motions) - k - 1
+            say(f"start proof cache cold: proving the library motions from rest on every model variant "
+                f"({took:.0f} s for {motion.name}; about {took * left:.0f} s more for the other {left}); "
+                f"once per robot and library, kept for every command after")
+    say(f"{ready} of {len(motions)} library motions compose ({time.monotonic() - t0:.1f} s"
+        + (", start proof cache now warm)" if cold else ", from the start proof cache)"))
+    return ready
 
 
 def _start_posture(args: argparse.Namespace, robot_dir: str | None) -> Posture | None:
@@ -196,7 +221,9 @@ def print_getup_report(report: Any, *, t_origin: float = 0.0) -> None:
         err = ""
         if est is not None and est.error is not None:
             err = f", estimate off by {est.error.orientation_deg:.1f} deg / {est.error.root_height_m * 1000:+.0f} mm"
+        repair = a.start_repair.describe() if a.start_repair is not None else ""
         print(f"attempt {a.attempt}: lying {a.lying or '-'}{err}; think {a.estimate_cpu_s + a.plan_cpu_s:.2f} s CPU; "
+              + (f"{repair}; " if repair and a.proven else "")
               + (f"{a.motion} proven" if a.proven else "not proven")
               + (f"; first command {_fmt(a.first_command_after_s)} after fallen-and-still" if a.first_command_s is not None else "")
               + ("; standing at " + _fmt(a.standing_s - t_origin) if a.standing and a.standing_s is not None else
@@ -217,7 +244,10 @@ def run(args: argparse.Namespace) -> int:
         raise RobotRiseError(f"--attempts {args.attempts}: at least 1")
     start = _start_posture(args, args.robot)
     config = scheme_config(args.scheme, GetUpConfig(attempts=args.attempts))
-    with open_live_session(args, start=start, stock=args.scheme == "stock") as s:
+    stock = args.scheme == "stock"
+    say = (lambda line: None) if args.json else (lambda line: print(line, flush=True))
+    # composed proofs with the cached start proofs, as the guard: the first command in ~2 s, not ~10-20 s
+    with open_live_session(args, start=start, stock=stock, composed=not (stock or args.whole_proofs), say=say) as s:
         config = dataclasses.replace(config, health=health_limits_for_supply(s.io.map.bus.supply_voltage_v))
         if not args.json:
             print(f"robot {s.robot.name} on {s.io.connection.url}: {len(s.io.map)} servos and the IMU answer; "

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import sys
 from pathlib import Path
 
 from robot_rise.cli import EXIT_FAILURE, EXIT_OK
+from robot_rise.cli._common import Formatter, print_json
 from robot_rise.constants import ENVELOPE_MARGIN
 from robot_rise.errors import ConfigError
 
@@ -21,17 +24,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--dir", type=Path, default=None, help="library directory (default: configs/motions/<robot>)")
     p.add_argument("--robot", type=Path, default=None, help="robot directory (default: the embedded OP3-class robot)")
     sub = p.add_subparsers(dest="library_command", metavar="ACTION", required=True)
-    sub.add_parser("list", help="one line per motion").set_defaults(func=_list)
-    s = sub.add_parser("show", help="details of one motion")
+    sub.add_parser("list", help="one line per motion", formatter_class=Formatter,
+                   epilog="examples:\n  robot-rise library list\n  robot-rise library list --robot robots/wolfgang --json",
+                   ).set_defaults(func=_list)
+    s = sub.add_parser("show", help="details of one motion", formatter_class=Formatter,
+                       epilog="example:\n  robot-rise library show prone_knees_first")
     s.add_argument("name")
     s.set_defaults(func=_show)
-    pl = sub.add_parser("play", help="play a motion through the servo model and print the judge's verdict")
+    pl = sub.add_parser(
+        "play",
+        help="play a motion through the servo model and print the judge's verdict",
+        formatter_class=Formatter,
+        description="Replay one motion of the library from its start posture through the servo model in MuJoCo (optionally\n"
+        "with scaled friction and link masses) and print the standing judge's verdict. Exit code 0 if it stands\n"
+        "within the envelope without self-collision, 1 if not.",
+        epilog="example:\n  robot-rise library play prone_knees_first --friction 0.5 --mass 1.1",
+    )
     pl.add_argument("name")
     pl.add_argument("--scene", default="flat", help="scene name or MJCF path (default: flat)")
     pl.add_argument("--friction", type=float, default=1.0, help="friction scale (default 1.0)")
     pl.add_argument("--mass", type=float, default=1.0, help="link mass scale (default 1.0)")
     pl.set_defaults(func=_play)
-    b = sub.add_parser("bench", help="connecting-posture selection: K-means tree vs brute force")
+    b = sub.add_parser("bench", help="connecting-posture selection: K-means tree vs brute force", formatter_class=Formatter,
+                       epilog="example:\n  robot-rise library bench --n 1000 --seed 0")
     b.add_argument("--n", type=int, default=1000, help="random lying postures (default 1000)")
     b.add_argument("--seed", type=int, default=0)
     b.set_defaults(func=_bench)
@@ -85,6 +100,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     # --robot and --dir before the action or after it: `library build --robot DIR` as the help examples write it
     for action in sub.choices.values():
         names = {o for a in action._actions for o in a.option_strings}
+        action.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
         if "--robot" not in names:
             action.add_argument("--robot", type=Path, default=argparse.SUPPRESS, help="robot directory (as library --robot DIR)")
         if "--dir" not in names:
@@ -101,6 +117,11 @@ def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
 
 def _list(args: argparse.Namespace) -> int:
     _, lib = _load(args)
+    if args.json:
+        print_json({"motions": [{"name": m.name, "lying": m.lying, "duration_s": m.duration_s,
+                                 "peak_envelope_ratio": m.trajectory.report.get("peak_envelope_ratio"),
+                                 "strategy": m.strategy} for m in lib.motions]})
+        return EXIT_OK
     print(f"{'name':24s} {'lying':7s} {'duration':>9s} {'peak':>5s}  strategy")
     for m in lib.motions:
         peak = m.trajectory.report.get("peak_envelope_ratio")
@@ -113,6 +134,12 @@ def _show(args: argparse.Namespace) -> int:
     _, lib = _load(args)
     m = lib.get(args.name)
     tr = m.trajectory
+    if args.json:
+        print_json({"name": m.name, "lying": m.lying, "strategy": m.strategy, "duration_s": m.duration_s, "rows": len(tr.t),
+                    "connect_until_s": m.connect_until_s, "start_root_pos": [float(x) for x in m.start.root_pos],
+                    "start_root_quat_wxyz": [float(x) for x in m.start.root_quat_wxyz],
+                    **{k: tr.report[k] for k in ("verdict", "keyframe_times_s") if k in tr.report}})
+        return EXIT_OK
     print(f"name:            {m.name}")
     print(f"lying:           {m.lying}")
     print(f"strategy:        {m.strategy}")
@@ -134,9 +161,14 @@ def _play(args: argparse.Namespace) -> int:
     player = Player(robot, args.scene, friction_scale=args.friction, mass_scale=args.mass)
     rec = player.play(m.trajectory, m.start)
     v = judge(rec)
+    ok = v.standing and v.peak_envelope_ratio <= 1.0 - ENVELOPE_MARGIN and not v.self_collision
+    if args.json:
+        print_json({"name": m.name, "ok": ok, "summary": v.summary(), "verdict": dataclasses.asdict(v),
+                    "duration_s": m.duration_s, "wall_time_s": rec.wall_time_s})
+        return EXIT_OK if ok else EXIT_FAILURE
     print(f"{m.name}: {v.summary()}")
     print(f"duration {m.duration_s:.2f} s, played in {rec.wall_time_s:.2f} s wall")
-    return EXIT_OK if v.standing and v.peak_envelope_ratio <= 1.0 - ENVELOPE_MARGIN and not v.self_collision else EXIT_FAILURE
+    return EXIT_OK if ok else EXIT_FAILURE
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -144,6 +176,9 @@ def _bench(args: argparse.Namespace) -> int:
 
     robot, lib = _load(args)
     result = bench_selection(robot, lib, n=args.n, seed=args.seed)
+    if args.json:
+        print_json(dataclasses.asdict(result) | {"agreement": result.agreement})
+        return EXIT_OK if result.agreement >= 0.99 else EXIT_FAILURE
     print(result.markdown())
     return EXIT_OK if result.agreement >= 0.99 else EXIT_FAILURE
 
@@ -155,6 +190,9 @@ def _author(args: argparse.Namespace) -> int:
 
     out = args.out or args.dir or configs_dir() / "motions" / "op3"
     entries = author_library(out, load_robot(args.robot), names=args.names)
+    if args.json:
+        print_json({"directory": str(out), "written": list(entries)})
+        return EXIT_OK if entries else EXIT_FAILURE
     for row in entries:
         print(f"{row['name']:24s} {row['duration_s']:6.2f}s  written to {out}")
     return EXIT_OK if entries else EXIT_FAILURE
@@ -167,9 +205,11 @@ def _build(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     if args.jobs < 1:
         raise ConfigError("--jobs must be at least 1")
-    import sys
-
     report = build_library(robot, args.out, jobs=args.jobs, names=args.names, progress=lambda line: print(line, file=sys.stderr, flush=True))
+    code = EXIT_OK if report.written or not report.failed else EXIT_FAILURE
+    if args.json:
+        print_json({"directory": str(report.directory), **report.to_dict()})
+        return code
     print(f"library of {robot.name}: {report.directory}")
     for row in report.written:
         print(f"  proven   {row['lying']:7s} {row['name']:26s} {row['duration_s']:6.2f} s")
@@ -181,7 +221,7 @@ def _build(args: argparse.Namespace) -> int:
         print(f"  kept     {row.get('lying', ''):7s} {row.get('name', ''):26s} (not rebuilt)")
     for kind in report.kinds_without_motion():
         print(f"  no proven motion for lying {kind}: rise from {kind} postures will fail on this robot")
-    return EXIT_OK if report.written or not report.failed else EXIT_FAILURE
+    return code
 
 
 def _prove(args: argparse.Namespace) -> int:
@@ -189,6 +229,11 @@ def _prove(args: argparse.Namespace) -> int:
     from robot_rise.model import load_robot
 
     results = reprove_library(args.dir, load_robot(args.robot))
+    if args.json:
+        print_json({"motions": [{"name": r.name, "proven": r.proof.proven, "problems": list(r.proof.problems),
+                                 "peak_torque_ratio": r.proof.peak_torque_ratio, "clamped": list(r.clamped),
+                                 "written": r.written} for r in results]})
+        return EXIT_OK if all(r.proof.proven for r in results) else EXIT_FAILURE
     for r in results:
         verdict = "PROVEN" if r.proof.proven else "NOT PROVEN: " + "; ".join(r.proof.problems)
         clamped = f"; start clamped into the limits at {', '.join(r.clamped)}" if r.clamped else ""

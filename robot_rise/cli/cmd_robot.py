@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
-from robot_rise.cli._common import Formatter, load_robot_arg
+from robot_rise.cli._common import Formatter, load_robot_arg, print_json
 from robot_rise.model import compose
 from robot_rise.errors import ConfigError
 from robot_rise.retarget import BodyScale, scale_robot
@@ -18,6 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     show = rsub.add_parser("show", help="joints, limits, servos, mass", formatter_class=Formatter,
                            epilog="example:\n  robot-rise robot show --robot configs/robots/op3")
     show.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded robot)")
+    show.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
     show.set_defaults(func=run_show)
     sc = rsub.add_parser("scale", help="write a robot directory with scaled arms, legs and torso",
                          formatter_class=Formatter,
@@ -29,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc.add_argument("--legs", type=float, default=1.0, help="leg segment length factor (default 1.0)")
     sc.add_argument("--torso", type=float, default=1.0, help="torso length factor (default 1.0)")
     sc.add_argument("--name", help="new robot name (default: <source>_scaled)")
+    sc.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
     sc.set_defaults(func=run_scale)
     im = rsub.add_parser(
         "import",
@@ -59,6 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     im.add_argument("--stand", metavar="POSTURE.json",
                     help="the robot standing (format robot-rise/posture@1): tried before the model's 'stand' keyframe and the search")
     im.add_argument("--dry-run", action="store_true", help="print every inference and fix, write nothing")
+    im.add_argument("--json", action="store_true", help="print one JSON object (the inferences and fixes in 'notes') instead of the text")
     im.set_defaults(func=run_import)
 
 
@@ -95,6 +99,13 @@ def run_bench_import(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     robot = load_robot_arg(args)
     m = compose(robot, None)
+    if args.json:
+        print_json({"name": robot.name, "directory": str(robot.directory), "library": str(robot.library),
+                    "supply_voltage_v": robot.supply_voltage_v, "mass_kg": float(m.body_mass.sum()),
+                    "stand_height_m": robot.stand_height_m,
+                    "joints": [{"id": s.id, "joint": s.joint, "model": s.model, "lower_rad": float(lo), "upper_rad": float(hi)}
+                               for s, lo, hi in zip(robot.servos, robot.joint_lower, robot.joint_upper)]})
+        return 0
     print(f"robot {robot.name} ({robot.directory}); library {robot.library}; servo supply {robot.supply_voltage_v:g} V")
     print(f"  mass {m.body_mass.sum():.3f} kg, stand height {robot.stand_height_m:.3f} m (torso above soles)")
     for s, lo, hi in zip(robot.servos, robot.joint_lower, robot.joint_upper):
@@ -106,6 +117,10 @@ def run_scale(args: argparse.Namespace) -> int:
     src = load_robot_arg(args)
     robot = scale_robot(src, args.out, BodyScale(arms=args.arms, legs=args.legs, torso=args.torso), name=args.name)
     m = compose(robot, None)
+    if args.json:
+        print_json({"directory": str(args.out), "name": robot.name, "mass_kg": float(m.body_mass.sum()),
+                    "stand_height_m": robot.stand_height_m})
+        return 0
     print(f"wrote {args.out}: robot {robot.name}, mass {m.body_mass.sum():.3f} kg, stand height {robot.stand_height_m:.3f} m")
     return 0
 
@@ -120,6 +135,9 @@ def run_import(args: argparse.Namespace) -> int:
     result = import_robot(args.model, args.out, servos=args.servos, servo_models=models or None, name=args.name,
                            supply_voltage_v=args.supply_voltage, force=args.force, package_paths=args.package_path,
                            stand=args.stand, dry_run=args.dry_run)
+    if args.json:
+        print_json({**dataclasses.asdict(result), "directory": str(result.directory)})
+        return 0
     for note in result.notes:
         print(f"  {note}")
     if not result.written:

@@ -25,6 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--out", required=True, metavar="DIR", help="directory for the posture files")
     p.add_argument("--max-attempts", type=int, default=None, help="give up after this many attempts (default: 100 * n)")
+    p.add_argument("--force", action="store_true", help="replace posture files that exist (default: refuse, write nothing)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_robot_args(p)
     p.set_defaults(func=run)
@@ -37,13 +38,16 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise RobotRiseError(f"--out {out} exists and is not a directory")
+    if args.kind != "any":  # the names are known before sampling: refuse at once
+        _refuse_existing([_path(out, args.kind, args.seed, i) for i in range(args.n)], args.force)
     result = sample_lying(
         robot, args.kind, args.n, args.seed, scene=args.scene, max_attempts=args.max_attempts, progress=Progress("sampling", args.n)
     )
+    paths = [_path(out, kind, args.seed, i) for i, kind in enumerate(result.kinds)]
+    _refuse_existing(paths, args.force)  # before the first file is written
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    for i, (p, kind) in enumerate(zip(result.postures, result.kinds)):
-        path = out / f"{kind}_{args.seed}_{i:03d}.json"
+    for path, p in zip(paths, result.postures):
         write_posture(path, p)
         files.append(str(path))
     if args.json:
@@ -53,3 +57,15 @@ def run(args: argparse.Namespace) -> int:
         for reason, count in sorted(result.discarded.items(), key=lambda kv: -kv[1]):
             print(f"  discarded {count}: {reason}")
     return 0
+
+
+def _path(out: Path, kind: str, seed: int, i: int) -> Path:
+    return out / f"{kind}_{seed}_{i:03d}.json"
+
+
+def _refuse_existing(paths: list[Path], force: bool) -> None:
+    """Refuse (one line, nothing written) when any of ``paths`` exists, unless ``force``."""
+    existing = [p for p in paths if p.exists()]
+    if existing and not force:
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        raise RobotRiseError(f"{existing[0]} exists{more}: pass --force to replace, or choose another --out or --seed")

@@ -7,7 +7,7 @@ import math
 import sys
 
 
-from robot_rise.cli._common import Formatter
+from robot_rise.cli._common import Formatter, print_json
 
 EPILOG = """examples:
   robot-rise servos scan --port /dev/ttyUSB0
@@ -30,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         g.add_argument("--mock", action="store_true", help="use an emulated bus built from the servo map")
         q.add_argument("--baud", type=int, help="baud rate [bit/s] (default: from servos.toml)")
         q.add_argument("--robot", metavar="DIR", help="robot directory (default: the embedded OP3)")
+        q.add_argument("--json", action="store_true", help="print one JSON object instead of the text")
 
     q = ssub.add_parser("scan", help="ping every ID of the servo map; show model and firmware",
                         formatter_class=Formatter, epilog="example:\n  robot-rise servos scan --port /dev/ttyUSB0")
@@ -84,24 +85,35 @@ def run_scan(args: argparse.Namespace) -> int:
     with conn:
         ids = range(0, 253) if args.all else smap.ids
         found = conn.bus.scan(ids)
-        print(f"port {conn.url} at {conn.bus.baud_rate} bit/s, Protocol {smap.protocol:.1f}: {conn.latency.note}")
+        lines = [f"port {conn.url} at {conn.bus.baud_rate} bit/s, Protocol {smap.protocol:.1f}: {conn.latency.note}"]
+        rows = []
         for sid in sorted(set(ids) | set(found)):
             if sid not in found and sid not in smap.ids:
                 continue
             expected = smap.by_id(sid) if sid in smap.ids else None
             r = found.get(sid)
             if r is None:
-                print(f"  id {sid:3d}  MISSING  (expected {expected.model} for {expected.joint})")  # type: ignore[union-attr]
+                lines.append(f"  id {sid:3d}  MISSING  (expected {expected.model} for {expected.joint})")  # type: ignore[union-attr]
+                rows.append({"id": sid, "answered": False, "joint": expected.joint, "expected_model": expected.model})  # type: ignore[union-attr]
                 continue
             t = model_for_number(r.model_number, smap.protocol)
             name = t.model if t else f"model {r.model_number}"
-            flag = "" if expected is None or expected.table.model == name else f"  WRONG MODEL (map: {expected.model})"
+            wrong = expected is not None and expected.table.model != name
+            flag = f"  WRONG MODEL (map: {expected.model})" if wrong else ""  # type: ignore[union-attr]
             joint = expected.joint if expected else "(not in map)"
             # 2.0: the status alert bit; 1.0: the status packet's alarm bits themselves
-            alert = "  ALERT" if r.error & (0x80 if smap.protocol == 2.0 else 0x7F) else ""
-            print(f"  id {sid:3d}  {name:12s} fw {r.firmware_version:3d}  {joint}{flag}{alert}")
+            alert = bool(r.error & (0x80 if smap.protocol == 2.0 else 0x7F))
+            lines.append(f"  id {sid:3d}  {name:12s} fw {r.firmware_version:3d}  {joint}{flag}{'  ALERT' if alert else ''}")
+            rows.append({"id": sid, "answered": True, "joint": expected.joint if expected else None, "model": name,
+                         "model_number": r.model_number, "firmware_version": r.firmware_version,
+                         "expected_model": expected.model if expected else None, "wrong_model": wrong, "alert": alert})
         missing = [i for i in smap.ids if i not in found]
-        print(f"{len(found)} servo(s) answered; {len(missing)} of the map missing")
+        lines.append(f"{len(found)} servo(s) answered; {len(missing)} of the map missing")
+        if args.json:
+            print_json({"port": conn.url, "baud_rate": conn.bus.baud_rate, "protocol": smap.protocol,
+                        "latency": conn.latency.note, "servos": rows, "answered": len(found), "missing": missing})
+        else:
+            print("\n".join(lines))
         if not found:
             _nothing_answered(conn.bus.baud_rate, smap.bus.baud_rate)
         return 0 if not missing else 1
@@ -122,14 +134,23 @@ def run_status(args: argparse.Namespace) -> int:
         preflight(conn.group, configure=False, require_all=False)
         conn.group.use_indirect = False  # do not touch the servos' indirect map for a status read
         fb = conn.group.read_feedback()
-        print(f"{'id':>3} {'joint':14s} {'angle[rad]':>10} {'temp[C]':>7} {'volt[V]':>7}  errors")
+        lines = [f"{'id':>3} {'joint':14s} {'angle[rad]':>10} {'temp[C]':>7} {'volt[V]':>7}  errors"]
+        rows: list[dict] = []
         for k, s in enumerate(smap.servos):
             if not fb.valid[k]:
-                print(f"{s.id:3d} {s.joint:14s} {'--':>10}  no answer")
+                lines.append(f"{s.id:3d} {s.joint:14s} {'--':>10}  no answer")
+                rows.append({"id": s.id, "joint": s.joint, "answered": False})
                 continue
             err = HardwareErrorBits.describe(int(fb.hardware_error[k]))
-            print(f"{s.id:3d} {s.joint:14s} {fb.position_rad[k]:10.3f} {fb.temperature_c[k]:7.0f} "
-                  f"{fb.voltage_v[k]:7.1f}  {err}")
+            lines.append(f"{s.id:3d} {s.joint:14s} {fb.position_rad[k]:10.3f} {fb.temperature_c[k]:7.0f} "
+                         f"{fb.voltage_v[k]:7.1f}  {err}")
+            rows.append({"id": s.id, "joint": s.joint, "answered": True, "angle_rad": float(fb.position_rad[k]),
+                         "temperature_c": float(fb.temperature_c[k]), "voltage_v": float(fb.voltage_v[k]),
+                         "hardware_error": int(fb.hardware_error[k]), "errors": err})
+        if args.json:
+            print_json({"servos": rows})
+        else:
+            print("\n".join(lines))
         if not fb.valid.any():
             _nothing_answered(conn.bus.baud_rate, smap.bus.baud_rate)
         return 0 if fb.valid.all() and not fb.hardware_error.any() else 1
@@ -142,11 +163,11 @@ def run_torque(args: argparse.Namespace) -> int:
     with conn:
         if args.state == "off":
             conn.group.torque(False)
-            print(f"torque off on {len(smap)} servo(s)")
+            _say(args, f"torque off on {len(smap)} servo(s)", torque="off", servos=len(smap))
             return 0
         preflight(conn.group)
         engage(conn.group, watchdog_s=None)  # goal = present, then torque on; no watchdog (we exit)
-        print(f"torque on (holding present position) on {len(smap)} servo(s)")
+        _say(args, f"torque on (holding present position) on {len(smap)} servo(s)", torque="on", servos=len(smap))
         return 0
 
 
@@ -157,7 +178,9 @@ def run_reboot(args: argparse.Namespace) -> int:
     with conn:
         smap.by_id(args.id)  # names valid IDs if unknown
         report = recover(conn.group, [args.id], attempts=1, torque_on=False)
-        for line in report.messages:
+        if args.json:
+            print_json({"id": args.id, "ok": report.ok, "messages": list(report.messages)})
+        for line in () if args.json else report.messages:
             print(line)
         return 0 if report.ok else 1
 
@@ -196,5 +219,14 @@ def run_read_posture(args: argparse.Namespace) -> int:
     write_posture(args.out, posture)
     worst = max(abs(joints[s.joint] - min(max(joints[s.joint], s.min), s.max)) for s in smap.servos)
     note = "" if worst < 1e-9 else f" (some joints outside the servo map limits by up to {math.degrees(worst):.1f} deg)"
-    print(f"wrote {args.out}: {len(smap)} joint angles read, root pose {root_note}{note}")
+    _say(args, f"wrote {args.out}: {len(smap)} joint angles read, root pose {root_note}{note}", file=str(args.out),
+         joints=dict(joints), root=root_note, outside_limits_rad=worst)
     return 0
+
+
+def _say(args: argparse.Namespace, text: str, **facts: object) -> None:
+    """Print ``text``, or with --json the same facts as one JSON object."""
+    if args.json:
+        print_json(facts)
+    else:
+        print(text)

@@ -36,6 +36,7 @@ from robot_rise.live.fall import FallConfig, FallState, FallTracker, new_tracker
 from robot_rise.live.health import HealthLimits, health_problems
 from robot_rise.live.io import RobotIO, TruthSource
 from robot_rise.live.planners import GetUpPlanner, PlannedGetUp
+from robot_rise.start_repair import StartRepair
 
 __all__ = [
     "GetUpConfig",
@@ -120,6 +121,8 @@ class AttemptReport:
         health: reasons not to move found before the try (empty: healthy).
         estimate: where the body was estimated to lie (None: not estimated).
         estimate_cpu_s, plan_cpu_s: CPU time of the estimate and of plan + proof [s].
+        start_repair: how the estimate was made a valid start (None: the planner did not check;
+            ``describe()`` says what was changed: root lifted, joints nudged apart).
         proven: a proven get-up was found.
         motion: the library motion it ends in.
         first_command_s: IO time of the first goal of the get-up [s] (None: nothing sent).
@@ -138,6 +141,7 @@ class AttemptReport:
     estimate: PostureEstimate | None = None
     estimate_cpu_s: float = 0.0
     plan_cpu_s: float = 0.0
+    start_repair: StartRepair | None = None
     proven: bool = False
     motion: str = ""
     first_command_s: float | None = None
@@ -167,6 +171,8 @@ class AttemptReport:
                 "error": None if e.error is None else e.error.to_dict()},
             "estimate_cpu_s": self.estimate_cpu_s,
             "plan_cpu_s": self.plan_cpu_s,
+            "start_repair": None if self.start_repair is None else {
+                **self.start_repair.to_dict(), "summary": self.start_repair.describe()},
             "proven": self.proven,
             "motion": self.motion,
             "first_command_s": self.first_command_s,
@@ -393,7 +399,9 @@ def get_up(io: RobotIO, planner: GetUpPlanner, estimator: PostureEstimator, *,
             c2 = cpu_clock()
             io.spent(c2 - c0)
             report = replace(report, estimate=estimate, estimate_cpu_s=c1 - c0, plan_cpu_s=c2 - c1,
-                             proven=planned.proven, motion=planned.motion)
+                             start_repair=planned.start_repair, proven=planned.proven, motion=planned.motion)
+            if planned.start_repair is not None and planned.start_repair.changed:
+                log.info("get-up attempt %d: %s", k, planned.start_repair.describe())
             if planned.trajectory is None or not (planned.proven or config.execute_unproven):
                 attempts.append(replace(report, ended_s=io.now_s(), why=f"no proven get-up: {planned.reason}"))
                 log.info("get-up attempt %d: no proven get-up: %s", k, planned.reason)

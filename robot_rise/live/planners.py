@@ -17,6 +17,7 @@ from robot_rise.library import MotionLibrary
 from robot_rise.live.estimate import PostureEstimate
 from robot_rise.model import Robot
 from robot_rise.rise import RiseContext, RiseOptions, rise
+from robot_rise.start_repair import RepairConfig, StartRepair, repair_start
 from robot_rise.trajectory import Trajectory
 
 __all__ = ["PlannedGetUp", "GetUpPlanner", "RisePlanner", "KeyframePlanner"]
@@ -31,12 +32,15 @@ class PlannedGetUp:
         proven: the trajectory carries a proof (only proven trajectories are executed).
         reason: why not proven (empty when proven).
         motion: the library motion it ends in.
+        start_repair: how the estimated posture was made a valid start (None: not checked, as
+            by the keyframe planner; ``status`` VALID: nothing changed).
     """
 
     trajectory: Trajectory | None
     proven: bool
     reason: str = ""
     motion: str = ""
+    start_repair: StartRepair | None = None
 
 
 class GetUpPlanner(Protocol):
@@ -52,6 +56,10 @@ class RisePlanner:
     a proof includes the ensemble). ``retries`` is 0 by default: a failed get-up is retried on the
     robot, from where it really lies, not in simulation.
 
+    A robot lying somewhere is a valid start: an estimate that self-collides or sinks a few mm in
+    our model is repaired first (:func:`robot_rise.start_repair.repair_start`: joints nudged
+    apart, root lifted), and the repair is reported in :attr:`PlannedGetUp.start_repair`.
+
     Args:
         context: checker, library, frame index, K-means tree and the ensemble's players.
         budget_s: planning budget per candidate [s].
@@ -60,11 +68,14 @@ class RisePlanner:
         filter_config: the dynamics filter (ensemble proof on by default).
         composed: compose the ensemble proof with the library motions' start proofs where it
             applies (``robot_rise.proof.composed``; precompute them: ``RiseContext.warm_start_proofs``).
+        repair: bounds of the start repair.
     """
 
     def __init__(self, context: RiseContext, *, budget_s: float = 5.0, candidates: int = 3, retries: int = 0,
-                 filter_config: FilterConfig = FilterConfig(), composed: bool = False) -> None:
+                 filter_config: FilterConfig = FilterConfig(), composed: bool = False,
+                 repair: RepairConfig = RepairConfig()) -> None:
         self.context = context
+        self.repair = repair
         self.composed = composed
         self.budget_s = budget_s
         self.candidates = candidates
@@ -73,11 +84,15 @@ class RisePlanner:
 
     def plan(self, estimate: PostureEstimate, attempt: int) -> PlannedGetUp:
         ctx = self.context
+        repaired = repair_start(estimate.posture, ctx.checker, config=self.repair)
+        if not repaired.valid:
+            return PlannedGetUp(None, False, repaired.describe(), start_repair=repaired)
         options = RiseOptions(scene=ctx.scene, seed=attempt, budget_s=self.budget_s, candidates=self.candidates, retries=self.retries,
                               filter_config=self.filter_config, composed=self.composed)
-        result = rise(ctx.robot, estimate.posture, options, context=ctx)
+        result = rise(ctx.robot, repaired.posture, options, context=ctx)
         motion = str(result.trajectory.report.get("motion", "")) if result.trajectory is not None else ""
-        return PlannedGetUp(result.trajectory if result.proven else None, result.proven, result.reason, motion)
+        return PlannedGetUp(result.trajectory if result.proven else None, result.proven, result.reason, motion,
+                            start_repair=repaired)
 
 
 class KeyframePlanner:
