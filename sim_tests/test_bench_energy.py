@@ -110,6 +110,9 @@ def test_that_merge_tables_a_results_file_of_its_format(tmp_path, capsys):
     path.write_text(json.dumps(_results([asdict(_row()), asdict(_row("rrt_blossom"))], format=be.BENCH_ENERGY_FORMAT)))
     assert cli_main(["bench", "energy", "--merge", str(path)]) == 0
     assert "| crossed_arms | energy | 1/1 (100 %)" in capsys.readouterr().out
+    assert cli_main(["bench", "energy", "--merge", str(path), "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [r["planner"] for r in rows] == ["energy", "rrt_blossom"] and rows[0] == json.loads(json.dumps(asdict(_row())))
 
 
 @pytest.mark.parametrize(

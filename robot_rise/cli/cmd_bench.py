@@ -118,8 +118,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.set_defaults(func=run_live_faults)
     t = bsub.add_parser("tamper", help="proven trajectories edited ten ways after their proof: each edit refused before the bus",
                         formatter_class=Formatter,
-                        epilog="examples:\n  robot-rise bench tamper\n  robot-rise bench tamper out/rises/*.json --robot robots/mine")
+                        epilog="examples:\n  robot-rise bench tamper\n  robot-rise bench tamper out/rises/*.json --rises 0 --robot robots/mine")
     t.add_argument("files", nargs="*", metavar="TRAJ", help="proven trajectory files (default: every motion of the robot's library)")
+    t.add_argument("--rises", type=_count, default=20, help="also this many fresh rise outputs from random lying postures (default: 20)")
+    t.add_argument("--seed", type=_count, default=0, help="seed of the lying postures (default: 0)")
     t.add_argument("--json", action="store_true", help="print JSON")
     add_robot_args(t, scene=False)
     t.set_defaults(func=run_tamper)
@@ -172,6 +174,7 @@ def _register_planners(bsub: argparse._SubParsersAction) -> None:
     e.add_argument("--out", default=None, help="write every run (and the arguments) as JSON here")
     e.add_argument("--merge", nargs="*", default=None, help="print the tables of saved --out files instead of running")
     e.add_argument("--lying-cache", default=None, help="keep the sampled lying60 problems in this JSON file (reused when it matches)")
+    e.add_argument("--json", action="store_true", help="print every run as JSON instead of the tables")
     e.set_defaults(func=run_energy)
     d = PlanningBenchOptions()
     g = bsub.add_parser("planning", help="RRT-blossom beside OMPL's RRT-Connect and PRM on the frozen problems: success, "
@@ -191,23 +194,30 @@ def _register_planners(bsub: argparse._SubParsersAction) -> None:
     g.add_argument("--turnover-library", default=d.turnover_library,
                    help="with --regenerate: the prone-only library directory of the turnover60 set (commit 8e60c43)")
     g.add_argument("--out", default=d.out, help=f"results JSON, rewritten after every run (default {d.out})")
+    g.add_argument("--json", action="store_true", help="print the summary and every run as JSON instead of the tables")
     g.set_defaults(func=run_planning)
     y = bsub.add_parser("player", help="physics steps per second of the player, every library motion",
                         formatter_class=Formatter, epilog="example:\n  robot-rise bench player --repeat 3")
     y.add_argument("--library", default=None, help="motion library directory (default: the shipped op3 library)")
     y.add_argument("--repeat", type=int, default=5, help="plays per motion (medians reported)")
     y.add_argument("--compare", default=None, metavar="DIR", help="also time DIR/sim.py (+ DIR/judge.py), interleaved")
+    y.add_argument("--json", action="store_true", help="print the figures per motion as JSON")
     y.set_defaults(func=run_player)
 
 
 def run_energy(args: argparse.Namespace) -> int:
+    import dataclasses
     import time
 
     from robot_rise.bench.energy import BenchRow, load_rows, run_benchmark, write_results
     from robot_rise.bench.energy_tables import energy_report
 
     if args.merge:
-        print(energy_report(load_rows(args.merge)))
+        merged = load_rows(args.merge)
+        if args.json:
+            print_json({"rows": [dataclasses.asdict(r) for r in merged]})
+        else:
+            print(energy_report(merged))
         return 0
     recorded = {k: getattr(args, k) for k in ("sets", "n", "budget", "seed", "lying_seed", "planners", "kinds", "out", "merge",
                                               "lying_cache", "verbose")}
@@ -223,6 +233,9 @@ def run_energy(args: argparse.Namespace) -> int:
                          planners=args.planners, kinds=tuple(args.kinds), progress=save, lying_cache=args.lying_cache)
     if args.out:
         write_results(args.out, rows, args=recorded, wall_s=time.monotonic() - t0)
+    if args.json:
+        print_json({"rows": [dataclasses.asdict(r) for r in rows], "wall_s": time.monotonic() - t0})
+        return 0
     print(energy_report(rows))
     print(f"\nwall {time.monotonic() - t0:.0f} s")
     return 0
@@ -234,7 +247,11 @@ def run_planning(args: argparse.Namespace) -> int:
     from robot_rise.bench.planning import PlanningBenchOptions, bench_planning, planning_report
 
     options = PlanningBenchOptions(**{f.name: getattr(args, f.name) for f in dataclasses.fields(PlanningBenchOptions)})
-    print(planning_report(*bench_planning(options)))
+    summary, runs = bench_planning(options)
+    if args.json:
+        print_json({"summary": summary, "runs": [dataclasses.asdict(r) for r in runs]})
+    else:
+        print(planning_report(summary, runs))
     return 0
 
 
@@ -242,6 +259,9 @@ def run_player(args: argparse.Namespace) -> int:
     from robot_rise.bench.player import bench, player_table
 
     rows = bench(args.library, args.repeat, args.compare)
+    if args.json:
+        print_json({"motions": rows, "repeat": args.repeat})
+        return 0
     print(player_table(rows, repeat=args.repeat, library_dir=args.library, compare=args.compare))
     return 0
 
@@ -413,14 +433,20 @@ def _fault_rig_opener(args: argparse.Namespace) -> OpenRig:
 
 def run_tamper(args: argparse.Namespace) -> int:
     import dataclasses
+    import tempfile
     from pathlib import Path
 
+    from robot_rise.bench.mock_execute import rise_outputs
     from robot_rise.bench.tamper import TAMPERS, tamper_campaign
     from robot_rise.library import load_library, robot_library_dir
 
     robot = load_robot_arg(args)
     files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
-    rows = tamper_campaign(robot, files)
+    with tempfile.TemporaryDirectory(prefix="robot-rise-tamper-") as tmp:
+        if args.rises:
+            print(f"rising from {args.rises} random lying postures ...", file=sys.stderr, flush=True)
+            files += rise_outputs(robot, args.rises, Path(tmp), seed=args.seed)
+        rows = tamper_campaign(robot, files)
     edits = len(rows) * len(TAMPERS)
     refused = sum(len(TAMPERS) - len(r.misses) for r in rows)
     false_refusals = [r for r in rows if not r.untouched_allowed]
