@@ -56,6 +56,7 @@ ERROR_CASES: dict[str, list[str]] = {
     "render_not_json": ["render", "{bad}", "--out", "{tmp}/x.png"],
     "render_missing_robot_dir": ["render", "{traj}", "--out", "{tmp}/x.png", "--robot", "{tmp}/no-robot"],
     "report_missing_file": ["report", "{tmp}/missing.json", "--out", "{tmp}/r"],
+    "library_add_missing_file": ["library", "add", "{tmp}/missing.csv", "--name", "mine", "--lying", "prone", "--dir", "{tmp}/lib"],
     "report_bad_margin": ["report", "{traj}", "--out", "{tmp}/r", "--margin", "1.5"],
     "report_unknown_camera": ["report", "{traj}", "--out", "{tmp}/r", "--camera", "nope"],
     "view_without_display": ["view", "{traj}"],

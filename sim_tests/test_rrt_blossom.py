@@ -120,7 +120,9 @@ def test_that_an_impossible_problem_fails_cleanly_within_its_budget(robot, tmp_p
     assert not res.solved and res.path is None
     assert res.status in (PlanStatus.TIMEOUT, PlanStatus.FAILED)
     assert "leg start -> goal" in res.reason and ("time budget" in res.reason or "exhausted" in res.reason)
-    assert "straight motion is first illegal" in res.reason and "obstacle collision" in res.reason  # which constraint
+    # which constraint: at the refinement level reached (a loaded core reaches fewer in the budget:
+    # at the first, obstacles shrunk, the feet touch the ground first; deeper, the cage's walls)
+    assert "straight motion is first illegal" in res.reason and ("obstacle collision" in res.reason or "ground collision" in res.reason)
     # The budget is wall time: on a loaded CI core the last iteration and the failure report can
     # overrun it by seconds. A planner that ignored its budget would run far past this bound.
     assert elapsed < 3 * budget + 5.0

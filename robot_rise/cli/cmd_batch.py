@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
 from robot_rise.cli._common import Formatter, Progress, print_json
@@ -71,15 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _progress_printer():
-    bar = Progress("batch", 1)
+    bar = Progress("batch", unit="task")
 
     def show(p) -> None:
-        eta = "?" if math.isnan(p.eta_s) else f"{p.eta_s:.0f} s"
-        if bar.enabled:
-            bar.label = f"batch {3600 * p.rate_per_s:.0f}/h ETA {eta}"
-            bar(p.done, p.total)
-        else:
-            print(f"batch: {p.done}/{p.total} done, {p.proven} proven, {p.failed} failed, {3600 * p.rate_per_s:.0f}/h, ETA {eta}", file=sys.stderr, flush=True)
+        bar(p.done, p.total, info=f"{p.proven} proven, {p.failed} failed, {3600 * p.rate_per_s:.0f}/h")
 
     return show
 

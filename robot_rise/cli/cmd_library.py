@@ -1,4 +1,4 @@
-"""``robot-rise library list|show|play NAME|bench|author|prove``: inspect, replay, benchmark, author and re-prove the motion library."""
+"""``robot-rise library list|show|play NAME|bench|author|build|prove|add FILE``: inspect, replay, benchmark, author, re-prove and extend the motion library."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ __all__ = ["register"]
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "library",
-        help="inspect, replay, benchmark, author and re-prove the get-up motion library",
+        help="inspect, replay, benchmark, author, re-prove and add to the get-up motion library",
         epilog="Example: robot-rise library play prone_knees_first --friction 0.5 --mass 1.1",
     )
     p.add_argument("--dir", type=Path, default=None, help="library directory (default: configs/motions/<robot>)")
@@ -97,6 +97,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     pr.add_argument("--dir", default=argparse.SUPPRESS, type=Path, help="library directory (as library --dir DIR)")
     pr.set_defaults(func=_prove)
+    ad = sub.add_parser(
+        "add",
+        help="add your own get-up (keyframes: CSV of joint angles and times, or MuJoCo keyframes) to the library, proven like ours",
+        formatter_class=Formatter,
+        description="Read keyframes of your own get-up and add them to the robot's library, proven as the library's\n"
+        "own motions are. FILE is a CSV with the header 'time_s,<joint>,...' (radians, or --degrees; every\n"
+        "driven joint of the robot) and a row per keyframe, or MuJoCo keyframes (.xml: <keyframe><key time\n"
+        "qpos/>) of the robot's own model, as export-keyframes writes them. The start is the first keyframe\n"
+        "lying as --lying says, settled on the floor (a MuJoCo file's first key where the model has a free\n"
+        "joint). The motion must stand on nominal and the four friction/mass corners within the envelope,\n"
+        "then its ensemble proof must hold; only then are its files and index row written (atomically).\n"
+        "Exit code 0 if proven and written, 1 if not proven (nothing written; with --unproven it is written\n"
+        "with proven=false, which execute and getup refuse).",
+        epilog="examples:\n  robot-rise library add my_getup.csv --name my_getup --lying prone --dir /tmp/op3\n"
+        "  robot-rise library add keys.xml --name my_roll --robot robots/wolfgang --json",
+    )
+    ad.add_argument("file", metavar="FILE", help="keyframes: a .csv (time_s and joint angles) or a .xml (MuJoCo keyframes)")
+    ad.add_argument("--name", required=True, help="the motion's name (its file stem in the library)")
+    ad.add_argument("--lying", choices=("supine", "prone", "left", "right"), default=None,
+                    help="how the first keyframe lies (needed for a CSV; a MuJoCo file's root is checked against it)")
+    ad.add_argument("--degrees", action="store_true", help="the CSV's angles are in degrees (default: radians)")
+    ad.add_argument("--strategy", default="", metavar="TEXT", help="one line for people (default: 'imported from FILE')")
+    ad.add_argument("--connect-until", dest="connect_until_s", type=float, default=None, metavar="S",
+                    help="end of its lying-to-sitting/squatting phase [s] (default: the last row before the body comes upright)")
+    ad.add_argument("--unproven", action="store_true", help="write it even when not proven (proven=false: execute and getup refuse it)")
+    ad.set_defaults(func=_add)
     # --robot and --dir before the action or after it: `library build --robot DIR` as the help examples write it
     for action in sub.choices.values():
         names = {o for a in action._actions for o in a.option_strings}
@@ -240,3 +266,28 @@ def _prove(args: argparse.Namespace) -> int:
         print(f"{r.name:24s} {verdict} (peak torque {r.proof.peak_torque_ratio:.2f} of the envelope){clamped}; "
               + ("written" if r.written else "unchanged"))
     return EXIT_OK if all(r.proof.proven for r in results) else EXIT_FAILURE
+
+
+def _add(args: argparse.Namespace) -> int:
+    from robot_rise.authoring.user_motion import add_motion
+    from robot_rise.keyframe_import import read_keyframes
+    from robot_rise.library import robot_library_dir
+    from robot_rise.model import load_robot
+
+    robot = load_robot(args.robot)
+    keys = read_keyframes(args.file, robot, degrees=args.degrees)
+    directory = args.dir if args.dir is not None else robot_library_dir(robot)
+    r = add_motion(directory, robot, keys, name=args.name, lying=args.lying, strategy=args.strategy,
+                   connect_until_s=args.connect_until_s, unproven=args.unproven)
+    code = EXIT_OK if r.proven else EXIT_FAILURE
+    if args.json:
+        print_json({"name": r.name, "directory": str(r.directory), "lying": r.lying, "proven": r.proven, "reason": r.reason,
+                    "written": r.written, "duration_s": r.duration_s, "keyframes": len(keys.time_s), "format": keys.format,
+                    "row": r.row})
+        return code
+    if r.proven:
+        print(f"{r.name}: PROVEN ({r.lying}, {r.duration_s:.2f} s, {len(keys.time_s)} keyframes); added to {r.directory}")
+    else:
+        written = "; written with proven=false (execute refuses it)" if r.written else "; nothing written"
+        print(f"{r.name}: NOT PROVEN: {r.reason}{written}")
+    return code

@@ -67,22 +67,23 @@ def run(args: argparse.Namespace) -> int:
     tr = load_trajectory_for(robot, args.trajectory)
     if args.hold < 0:
         raise RobotRiseError("--hold must be >= 0")
-    progress = Progress("render", 1)
-    result = render(
-        robot,
-        tr,
-        args.out,
-        scene=args.scene,
-        camera=camera_from_args(args),
-        width=args.width,
-        height=args.height,
-        fps=args.fps,
-        speed=args.speed,
-        key_frames=args.frames,
-        shadows=args.shadows,
-        hold_s=args.hold,
-        progress=progress,
-    )
+    with Progress("render", unit="frame") as progress:
+        result = render(
+            robot,
+            tr,
+            args.out,
+            scene=args.scene,
+            camera=camera_from_args(args),
+            width=args.width,
+            height=args.height,
+            fps=args.fps,
+            speed=args.speed,
+            key_frames=args.frames,
+            shadows=args.shadows,
+            hold_s=args.hold,
+            progress=progress,
+            stage=progress.stage,
+        )
     if args.json:
         print_json(result.as_dict())
     else:

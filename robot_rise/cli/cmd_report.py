@@ -43,18 +43,20 @@ def run(args: argparse.Namespace) -> int:
     tr = load_trajectory_for(robot, args.trajectory)
     if not 0 <= args.margin < 1:
         raise RobotRiseError("--margin must be in [0, 1)")
-    result = write_report(
-        robot,
-        tr,
-        args.out,
-        scene=args.scene,
-        name=Path(args.trajectory).name,
-        camera=camera_from_args(args),
-        video=not args.no_video,
-        key_frames=args.frames,
-        proof_config=ProofConfig(envelope_margin=args.margin),
-        progress=Progress("render", 1),
-    )
+    with Progress("report", unit="frame") as progress:
+        result = write_report(
+            robot,
+            tr,
+            args.out,
+            scene=args.scene,
+            name=Path(args.trajectory).name,
+            camera=camera_from_args(args),
+            video=not args.no_video,
+            key_frames=args.frames,
+            proof_config=ProofConfig(envelope_margin=args.margin),
+            progress=progress,
+            stage=progress.stage,
+        )
     if args.json:
         print_json(result.as_dict())
     else:

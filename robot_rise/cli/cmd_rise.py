@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
-from robot_rise.cli._common import Formatter, add_robot_args, load_robot_arg, print_json
+from robot_rise.cli._common import Formatter, Progress, add_robot_args, load_robot_arg, print_json
 from robot_rise.filter import FilterConfig
 from robot_rise.proof import Proof, ProofConfig
 from robot_rise.library import load_library
@@ -50,15 +49,10 @@ def run(args: argparse.Namespace) -> int:
     start = read_posture(args.start, robot)
     key = read_posture(args.key, robot) if args.key else None
     library = load_library(args.library) if args.library else None
-    tty = sys.stderr.isatty()
-
-    def progress(stage: str) -> None:
-        if tty:
-            print(f"  {stage}...", file=sys.stderr)
-
     options = RiseOptions(scene=args.scene, key=key, seed=args.seed, budget_s=args.budget, library=library, candidates=args.candidates,
                           filter_config=FilterConfig(proof=ProofConfig(envelope_margin=args.margin)), composed=args.composed)
-    result = rise(robot, start, options, progress=progress)
+    with Progress("rise") as progress:
+        result = rise(robot, start, options, progress=progress.stage)
     wrote = False
     if result.trajectory is not None and (result.proven or args.write_unproven):
         write_trajectory(args.out, result.trajectory)

@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     if args.kind != "any":  # the names are known before sampling: refuse at once
         _refuse_existing([_path(out, args.kind, args.seed, i) for i in range(args.n)], args.force)
     result = sample_lying(
-        robot, args.kind, args.n, args.seed, scene=args.scene, max_attempts=args.max_attempts, progress=Progress("sampling", args.n)
+        robot, args.kind, args.n, args.seed, scene=args.scene, max_attempts=args.max_attempts, progress=Progress("sampling", args.n, unit="posture")
     )
     paths = [_path(out, kind, args.seed, i) for i, kind in enumerate(result.kinds)]
     _refuse_existing(paths, args.force)  # before the first file is written

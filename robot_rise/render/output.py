@@ -92,6 +92,7 @@ def render(
     shadows: bool | None = None,
     hold_s: float = DEFAULT_HOLD_S,
     progress: Callable[[int, int], None] | None = None,
+    stage: Callable[[str], None] | None = None,
 ) -> RenderResult:
     """Replay ``trajectory`` in MuJoCo and write it as a video, a GIF or a contact sheet.
 
@@ -110,6 +111,7 @@ def render(
             cost two thirds of the frame rate of a CPU renderer).
         hold_s: time the last goal is held after the trajectory, when playing [s].
         progress: called with (frames done, frames total).
+        stage: called with a short description at the start of each stage (replay, frames).
 
     Raises:
         RenderError: unknown suffix, no OpenGL backend, no encoder.
@@ -129,7 +131,9 @@ def render(
     check_camera(robot, scene, camera)
     if shadows is None:
         shadows = suffix == ".png"
+    say = stage or (lambda text: None)
     if recording is None:
+        say(f"replaying {trajectory.duration_s:.2f} s + {hold_s:g} s hold through the servo model")
         recording = play(robot, trajectory, scene=scene, hold_s=hold_s)
     rec = recording
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -137,6 +141,7 @@ def render(
     t0 = time.perf_counter()
     if suffix == ".png":
         times = key_frame_times(rec, key_frames)
+        say(f"rendering {len(times)} key frames to {path.name}")
         imgs = list(
             render_frames(
                 robot, rec, times, scene=scene, camera=camera, width=w, height=h, shadows=shadows, label=False, progress=progress, backend_out=backend
@@ -151,6 +156,7 @@ def render(
     else:
         rate = float(DEFAULT_FPS[suffix] if fps is None else fps)
         times = frame_times(float(rec.t[-1]), rate, speed=speed)
+        say(f"rendering {len(times)} frames to {path.name}")
         frames = render_frames(
             robot, rec, times, scene=scene, camera=camera, width=w, height=h, shadows=shadows, progress=progress, backend_out=backend
         )

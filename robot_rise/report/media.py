@@ -62,6 +62,7 @@ def replay_media(
     video: bool,
     key_frames: int,
     progress: Callable[[int, int], None] | None = None,
+    stage: Callable[[str], None] | None = None,
 ) -> ReplayMedia:
     """Render ``rec`` (the replay of ``trajectory``) as a video in ``out_dir`` and as ``key_frames`` key frames.
 
@@ -74,7 +75,8 @@ def replay_media(
         camera: camera of the video and key frames.
         video: make a video (MP4, or a GIF without imageio-ffmpeg); False for key frames only.
         key_frames: number of key frames in the contact sheet (>= 1).
-        progress: called with (frames done, frames total) while rendering the video.
+        progress: called with (frames done, frames total) while rendering the video, then the key frames.
+        stage: called with a short description at the start of each stage.
 
     Raises:
         RenderError: rendering is impossible here.
@@ -87,7 +89,8 @@ def replay_media(
             video_path = out_dir / "video.mp4"
             vw, vh = VIDEO_SIZE_PX
             res = render(
-                robot, trajectory, video_path, scene=scene, recording=rec, camera=camera, width=vw, height=vh, fps=VIDEO_FPS, progress=progress
+                robot, trajectory, video_path, scene=scene, recording=rec, camera=camera, width=vw, height=vh, fps=VIDEO_FPS, progress=progress,
+                stage=stage
             )
             parts.append(
                 f'<video controls loop muted playsinline width="{vw}" height="{vh}" src="{data_uri("video/mp4", video_path.read_bytes())}"></video>'
@@ -97,14 +100,17 @@ def replay_media(
             video_path = out_dir / "video.gif"
             gw, gh = GIF_SIZE_PX
             res = render(
-                robot, trajectory, video_path, scene=scene, recording=rec, camera=camera, width=gw, height=gh, fps=GIF_FPS, progress=progress
+                robot, trajectory, video_path, scene=scene, recording=rec, camera=camera, width=gw, height=gh, fps=GIF_FPS, progress=progress,
+                stage=stage
             )
             parts.append(img_html(video_path.read_bytes(), "animation of the replay", "image/gif"))
             parts.append('<p class="note">Animated GIF: install imageio-ffmpeg for an MP4 video.</p>')
             images += 1
     times = key_frame_times(rec, key_frames)
     kw, kh = KEY_FRAME_SIZE_PX
-    frames = list(render_frames(robot, rec, times, scene=scene, camera=camera, width=kw, height=kh, shadows=True, label=False))
+    if stage is not None:
+        stage(f"rendering {len(times)} key frames")
+    frames = list(render_frames(robot, rec, times, scene=scene, camera=camera, width=kw, height=kh, shadows=True, label=False, progress=progress))
     sheet = contact_sheet(frames, [f"t = {t:.2f} s" for t in times])
     from PIL import Image
 

@@ -83,6 +83,7 @@ def write_report(
     key_frames: int = 8,
     proof_config: ProofConfig = ProofConfig(),
     progress: Callable[[int, int], None] | None = None,
+    stage: Callable[[str], None] | None = None,
 ) -> ReportResult:
     """Replay, judge and draw ``trajectory``; write ``out_dir/report.html`` (and the video beside it).
 
@@ -96,7 +97,9 @@ def write_report(
         video: embed a video (MP4, or a GIF without imageio-ffmpeg); False for key frames only.
         key_frames: number of key frames in the contact sheet.
         proof_config: the check's standard (envelope margin, hold time).
-        progress: called with (frames done, frames total) while rendering.
+        progress: called with (frames done, frames total) while rendering (video, then key frames).
+        stage: called with a short description at the start of each stage (replay, video, key
+            frames, plots, page).
 
     Returns:
         the :class:`ReportResult`.
@@ -112,13 +115,17 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     title_name = name or "trajectory"
+    say = stage or (lambda text: None)
+    say(f"replaying {trajectory.duration_s:.2f} s through the servo model and judging it")
     rec, verdict, proof = prove(robot, trajectory, scene=scene, config=proof_config)
     limit = proof.envelope_limit
 
-    media = replay_media(robot, trajectory, rec, out, scene=scene, camera=camera, video=video, key_frames=key_frames, progress=progress)
+    media = replay_media(robot, trajectory, rec, out, scene=scene, camera=camera, video=video, key_frames=key_frames, progress=progress,
+                         stage=stage)
     images = media.n_images
     sections: list[tuple[str, str]] = [("Replay", media.html)]
 
+    say("drawing the plots")
     servos = servo_arrays(robot.servo_datasheets(), robot.supply_voltage_v)
     plots = [
         ("Joint targets vs simulated positions", plot_joints(rec), "joint targets and simulated positions"),
@@ -149,6 +156,7 @@ def write_report(
     }
     sections.append(("Trajectory", value_html(facts)))
 
+    say(f"writing {REPORT_FILE}")
     head = verdict_html(proof.proven, str(scene), verdict.summary(), proof.problems)
     page = page_html(f"{robot.name}: {title_name}", sections, head)
     path = out / REPORT_FILE
