@@ -436,17 +436,11 @@ def run_tamper(args: argparse.Namespace) -> int:
     import tempfile
     from pathlib import Path
 
-    from robot_rise.bench.mock_execute import rise_outputs
     from robot_rise.bench.tamper import TAMPERS, tamper_campaign
-    from robot_rise.library import load_library, robot_library_dir
 
     robot = load_robot_arg(args)
-    files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
     with tempfile.TemporaryDirectory(prefix="robot-rise-tamper-") as tmp:
-        if args.rises:
-            print(f"rising from {args.rises} random lying postures ...", file=sys.stderr, flush=True)
-            files += rise_outputs(robot, args.rises, Path(tmp), seed=args.seed)
-        rows = tamper_campaign(robot, files)
+        rows = tamper_campaign(robot, _proven_files(args, robot, Path(tmp)))
     edits = len(rows) * len(TAMPERS)
     refused = sum(len(TAMPERS) - len(r.misses) for r in rows)
     false_refusals = [r for r in rows if not r.untouched_allowed]
@@ -492,15 +486,11 @@ def run_mock_execute(args: argparse.Namespace) -> int:
     import tempfile
     from pathlib import Path
 
-    from robot_rise.bench.mock_execute import execute_on_mock, rise_outputs
-    from robot_rise.library import load_library, robot_library_dir
+    from robot_rise.bench.mock_execute import execute_on_mock
 
     robot = load_robot_arg(args)
-    files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
     with tempfile.TemporaryDirectory(prefix="robot-rise-mock-execute-") as tmp:
-        if args.rises:
-            print(f"rising from {args.rises} random lying postures ...", file=sys.stderr, flush=True)
-            files += rise_outputs(robot, args.rises, Path(tmp), seed=args.seed)
+        files = _proven_files(args, robot, Path(tmp))
         def say(run) -> None:  # type: ignore[no-untyped-def]
             if not args.json:
                 state = "clean" if run.clean else f"exit {run.exit_code}; {'; '.join(run.faults) or run.said or 'no fault'}"
@@ -515,6 +505,21 @@ def run_mock_execute(args: argparse.Namespace) -> int:
         print(f"{clean} of {len(runs)} runs clean (no fault, no clamped cycle) over {len(files)} files; "
               f"most of the band used: {worst}")
     return 0 if clean == len(runs) else 1
+
+
+def _proven_files(args: argparse.Namespace, robot, directory):  # type: ignore[no-untyped-def]
+    """The files a campaign runs: ``args.files`` (default: the robot's library) and ``args.rises``
+    fresh rise outputs written to ``directory``."""
+    from pathlib import Path
+
+    from robot_rise.bench.mock_execute import rise_outputs
+    from robot_rise.library import load_library, robot_library_dir
+
+    files = [Path(f) for f in args.files] or [m_dir / str(m) for m_dir, m in _library_files(load_library(robot_library_dir(robot)))]
+    if args.rises:
+        print(f"rising from {args.rises} random lying postures ...", file=sys.stderr, flush=True)
+        files += rise_outputs(robot, args.rises, directory, seed=args.seed)
+    return files
 
 
 def _library_files(library):  # type: ignore[no-untyped-def]
